@@ -1,8 +1,8 @@
-"""A float32 tendency against float64 on the CPU: the RHS, a step, the device arrays, peak memory.
+"""A float32 model against float64 on the CPU: the RHS, a step, the device arrays, peak memory.
 
 For each grid, the same scene's model is built twice in this process, ``precision`` float64
-and float32 (``swe_sphere.model.precision``: the tendency in float32 from the float64 state, the
-DSS's sums, the state, its updates and the ∇⁴ float64), one thread each, and timed in
+and float32 (``swe_sphere.model.precision``: the tendency and the ∇⁴ in float32 from the float64
+state, the DSS's sums, the state and its updates float64), one thread each, and timed in
 alternating rounds (the two never apart by more than one round's drift):
 
 1. the RHS (``model.rhs``: the tendency and its DSS) in element-local points a second;

@@ -137,10 +137,11 @@ def vorticity_sphere(
 
 
 @wp.func
-def weak_flux(a: f64, b: f64, Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), p: int):
+def weak_flux(a: Any, b: Any, Dinv: wp.array2d(dtype=Any), spheremp: wp.array(dtype=Any), p: int):
     """spheremp · Dinv Dinvᵀ (a, b) at node p, (a, b) = (∂ξ f, ∂η f): the quadrature-weighted
     contravariant gradient whose weak divergence (``weak_divergence``) is the weak Laplacian
-    (HOMME ``laplace_sphere_wk``)."""
+    (HOMME ``laplace_sphere_wk``); a vector of 2 of the arguments' float type (float64, or a
+    float32 ∇⁴'s)."""
     d0 = Dinv[0, p]
     d1 = Dinv[1, p]
     d2 = Dinv[2, p]
@@ -148,7 +149,7 @@ def weak_flux(a: f64, b: f64, Dinv: wp.array2d(dtype=f64), spheremp: wp.array(dt
     w = spheremp[p]
     gx = d0 * a + d2 * b
     gy = d1 * a + d3 * b
-    return wp.vec2d(w * (d0 * gx + d1 * gy), w * (d2 * gx + d3 * gy))
+    return wp.vector(w * (d0 * gx + d1 * gy), w * (d2 * gx + d3 * gy))
 
 
 @wp.kernel
@@ -173,12 +174,13 @@ def laplace_wk_flux(
 
 
 @wp.func
-def weak_divergence(flux: wp.array2d(dtype=f64), r: int, dvv: wp.array2d(dtype=f64), np_: int, p: int):
+def weak_divergence(flux: wp.array2d(dtype=Any), r: int, dvv: wp.array2d(dtype=Any), np_: int, p: int):
     """The second half of the weak Laplacian of row r at node p = (m, n):
     −Σ_i dvv[i, m] flux¹(i, n) − Σ_j dvv[j, n] flux²(m, j), i.e. −∫ ∇φ_mn·∇f
-    over the element (m² × units of f / m²), from ``laplace_wk_flux``'s flux."""
+    over the element (m² × units of f / m²), from ``laplace_wk_flux``'s flux (in its float type:
+    float64, or a float32 ∇⁴'s)."""
     base, m, n = element_node(p, np_)
-    s = f64(0.0)
+    s = type(flux[r, p])(0.0)
     for q in range(np_):
         s += dvv[q, m] * flux[2 * r, base + n * np_ + q] + dvv[q, n] * flux[2 * r + 1, base + q * np_ + m]
     return -s

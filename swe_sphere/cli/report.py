@@ -115,8 +115,8 @@ def header(args, sim, output, device, comm) -> None:
 
 
 def precision_line(scene) -> str:
-    """The header's ``precision`` line: the scene's (``Scene.precision``), float32 the tendency's alone."""
-    state = " (tendency; state float64)" if scene.precision != "float64" else ""
+    """The header's ``precision`` line: the scene's (``Scene.precision``), float32 the tendency's and the ∇⁴'s."""
+    state = " (tendency and hyperviscosity; state float64)" if scene.precision != "float64" else ""
     return f"precision   {scene.precision}{state}"
 
 

@@ -19,6 +19,7 @@ import warp as wp
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
 from ..kernels import hyperviscosity, operators
+from .precision import rounded
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
 f64 = wp.float64
@@ -52,6 +53,15 @@ class Hyperviscosity:
     operator's spectral radius (``biharmonic_radius``). Allocates its work arrays
     (12 rows of N and the fixed metric's 4 on the per-element layout, 20 on the per-node one) once.
 
+    In the model's precision (``ShallowWater``'s ``precision``; ``dtype`` its float type): under
+    float32 the weak Laplacians, their work arrays (but the per-node layout's Y₁, the DSS's
+    float64 output, read and rounded) and the geometry they read (``geometry``: Dinv, east,
+    north, xyz; spheremp and dvv the tendency's, ``ShallowWater.tendency_arrays``; the fixed
+    metrics), computed in float64 and rounded once, are float32; the state, hs and δ stay
+    float64, read and rounded, the free surface h + hs − H₀ (H₀ the tendency's reference depth)
+    formed in float64; the DSSs sum in float64 and the last adds coef·Y₂ to the float64 state
+    in float64. The adjoint's transposes are float64's alone.
+
     ``across_elements``: W, the elements a vector of the CPU's weak Laplacians at np ≥ 5
     (``kernels.hyperviscosity.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
     element, on rows, as at np ≤ 4), read when a model is built (a benchmark's switch); its
@@ -62,21 +72,27 @@ class Hyperviscosity:
     def __init__(self, model):
         self.model = m = model
         N, device = m.N, m.device
-        self.hv_Y = wp.zeros((4, N), dtype=f64, device=device)  # Y₁ (``kernels.hyperviscosity``)
-        self.hv_L = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₁ (and Y₂'s on the per-node layout)
-        if m.operators.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
-            self.hv_metric = wp.zeros((4, N), dtype=f64, device=device)
-            self.hv_L2 = wp.zeros((4, N), dtype=f64, device=device)  # the weak form of Y₂ (L holds Y₁'s)
-            m.launches.nodes(
-                hyperviscosity.laplacian_metric, N, [m.operators.Dinv, m.spheremp, self.hv_metric]
-            ).launch()
+        t = m.tendency_arrays
+        self.dtype = dtype = t.dtype  # the model's float type: the ∇⁴'s
+        # the frame the passes read (``_frame``), in that type (Dinv the tendency's; spheremp, dvv: t.mass, t.dvv)
+        ops = m.operators
+        self.geometry = {"Dinv": t.Dinv, **{k: rounded(getattr(ops, k), dtype) for k in ("east", "north", "xyz")}}
+        # Y₁ (``kernels.hyperviscosity``); the per-node layout's is the DSS's output, float64
+        self.hv_Y = wp.zeros((4, N), dtype=dtype if ops.per_element else f64, device=device)
+        # the weak form of Y₁ (and Y₂'s on the per-node layout)
+        self.hv_L = wp.zeros((4, N), dtype=dtype, device=device)
+        if ops.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+            metric = wp.zeros((4, N), dtype=f64, device=device)
+            self.hv_L2 = wp.zeros((4, N), dtype=dtype, device=device)  # the weak form of Y₂ (L holds Y₁'s)
+            m.launches.nodes(hyperviscosity.laplacian_metric, N, [ops.Dinv, m.spheremp, metric]).launch()
+            self.hv_metric = rounded(metric, dtype)
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
-            self.hv_X = wp.zeros((4, N), dtype=f64, device=device)
-            self.hv_flux = wp.zeros((8, N), dtype=f64, device=device)
+            self.hv_X = wp.zeros((4, N), dtype=dtype, device=device)
+            self.hv_flux = wp.zeros((8, N), dtype=dtype, device=device)
         self.lanes = self._lanes()  # W of ``laplacian_across``, 0: the rows
         self._across_metrics: dict = {}  # a metric's rows 0..2 in the across layout, by its address
         if self.lanes:  # each CPU thread's scratch X, fx, fy (``laplacian_across``)
-            vw = wp.types.vector(length=self.lanes, dtype=f64)
+            vw = wp.types.vector(length=self.lanes, dtype=dtype)
             nn, slots = m.grid.np**2, max(1, m.launches.threads)
             self._scratch = [wp.zeros((slots, nn), dtype=vw, device=device) for _ in range(3)]
             self._per_part = {k: [a[i] for i in range(slots)] for k, a in zip(("X", "fx", "fy"), self._scratch)}
@@ -86,7 +102,9 @@ class Hyperviscosity:
         self._biharmonic_radius = None
         self._rkl_buffer = None  # RKL1's Y_{j−1} or Y_{j−2} beside x (``rkl1``)
 
-    def build(self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0)):
+    def build(
+        self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0), depth=None
+    ):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
         (None: the model's); out = x if None. ``mode`` "euler": out = x + coef·B x instead;
@@ -99,12 +117,15 @@ class Hyperviscosity:
         ``transposed``: the tensor ∇⁴'s transpose in the mass form (for the adjoint), its two
         Laplacians' metrics swapped: B = Pᵀ RQ K̃_V RQ Π K̃ P with each K̃ symmetric has
         M⁻¹Bᵀ M = Pᵀ RQ K̃ Π RQ K̃_V P, the tensor's first (the constant ∇⁴ is its own);
-        ValueError with ν_div ≠ ν (its ∇δ term is not symmetric)."""
+        ValueError with ν_div ≠ ν (its ∇δ term is not symmetric). ``depth``: the reference
+        depth H₀ (m) a float32 ∇⁴ takes the free surface from (None: the tendency's; 0 for an
+        operator on other than a state, ``biharmonic_radius``'); unread in float64."""
         m = self.model
         out = x if out is None else out
         nu, nu_div, nu_s = (m.nu, m.nu_div, m.nu_s) if nus is None else nus
         shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
-        c = wp.vec4d(nu, nu_div - nu, nu_s, shift)
+        c = wp.types.vector(length=4, dtype=self.dtype)(nu, nu_div - nu, nu_s, shift)
+        depth = m.tendency_arrays.depth if depth is None else float(depth)
         divergent = nu_div != nu
         if transposed and divergent:
             raise ValueError("the ∇⁴ with nu_div != nu has no transpose")
@@ -112,7 +133,8 @@ class Hyperviscosity:
         # δ = DSS(∇·v), read only when divergent
         launches = m.operators.divergence_launches(x, m.operators.scalar_dss) if divergent else []
         laplacian = self._element_laplacian if m.operators.per_element else self._node_laplacian
-        passes = [*launches, *laplacian(x, c, divergent, swap, False), *laplacian(x, c, divergent, swap, True)]
+        first, second = (laplacian(x, c, divergent, swap, s, depth) for s in (False, True))
+        passes = [*launches, *first, *second]
         return [*passes, *self._dss_apply(x, coef, out, mode, prev, weights)]
 
     def _lanes(self) -> int:
@@ -128,20 +150,21 @@ class Hyperviscosity:
         made once for each fixed metric (the constant ∇⁴'s, the tensor's)."""
         key = metric.ptr
         if key not in self._across_metrics:
-            m, vw = self.model, wp.types.vector(length=self.lanes, dtype=f64)
+            m, vw = self.model, wp.types.vector(length=self.lanes, dtype=self.dtype)
             values = hyperviscosity.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
             self._across_metrics[key] = (wp.array(values, dtype=vw, device=m.device), metric)
         return self._across_metrics[key][0]
 
-    def _element_laplacian(self, x, c, divergent: bool, swap: bool, second: bool) -> list:
+    def _element_laplacian(self, x, c, divergent: bool, swap: bool, second: bool, depth: float) -> list:
         """``build``'s launches of one weak Laplacian on the per-element layout: the first
         (``second`` False) the weak form of Y₁ in L from ``x``, the second that of Y₂ in L2 from
         the DSS of L, which it sums element by element itself (on rows where the topology has
         them). ``c`` the kernels' coefficients (ν, ν_div − ν, ν_s, 2/a²), ``divergent`` ν_div ≠ ν,
-        ``swap`` the tensor's metric read by the first pass instead of the second."""
-        m = self.model
+        ``swap`` the tensor's metric read by the first pass instead of the second, ``depth`` the
+        reference depth H₀ (m; ``build``'s)."""
+        m, dtype = self.model, self.dtype
         np_, L, Y, delta = m.grid.np, self.hv_L, self.hv_Y, m.operators.scalar_dss
-        frame = self._frame(*() if second else self._first_names(divergent), rows=True)
+        frame = self._frame(*() if second else self._first_names(divergent), rows=True, depth=depth)
         metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
         args = [
             m.operators.as_rows(m.operators.hs),
@@ -149,12 +172,12 @@ class Hyperviscosity:
             c,
             frame,
             m.operators.as_rows(metric),
-            m.operators.dvv_rows,
+            m.tendency_arrays.dvv_rows,
         ]
         W, nelem = self.lanes, m.N // np_**2
         across = [self._across_metric(metric), *(v[0] for v in self._per_part.values())] if W else []
         if not second:  # x, d and Y are not read
-            kernel = hyperviscosity.laplacian_element(False, divergent, np_)
+            kernel = hyperviscosity.laplacian_element(False, divergent, np_, dtype=dtype)
             head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
             rows = [*head, *args, m.operators.as_rows(L), m.launches.block]
             if not W:
@@ -163,7 +186,7 @@ class Hyperviscosity:
             inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across]
             launches = [
                 m.launches.record(
-                    hyperviscosity.laplacian_across(False, divergent, np_, W),
+                    hyperviscosity.laplacian_across(False, divergent, np_, W, dtype=dtype),
                     blocks,
                     inputs,
                     nodes_per_index=W * np_**2,
@@ -178,13 +201,15 @@ class Hyperviscosity:
         tail = [*args, m.operators.as_rows(self.hv_L2)]
         if m.topology.edges is not None:
             rows = lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(  # noqa: E731
-                True, divergent, np_, copies, ghosts, rows=True
+                True, divergent, np_, copies, ghosts, rows=True, dtype=dtype
             )
             if not W:
                 return m.topology.by_element(L, rows, [m.operators.as_rows(Y), *tail])
             return m.topology.by_element(
                 L,
-                lambda _, copies, ghosts, np_: hyperviscosity.laplacian_across(True, divergent, np_, W, copies, ghosts),
+                lambda _, copies, ghosts, np_: hyperviscosity.laplacian_across(
+                    True, divergent, np_, W, copies, ghosts, dtype
+                ),
                 [m.operators.as_rows(Y), *tail, *across],
                 lanes=W,
                 per_part=self._per_part,
@@ -192,37 +217,39 @@ class Hyperviscosity:
             )
         return m.topology.gathering(
             L,
-            lambda rows, copies, ghosts: hyperviscosity.laplacian_element(True, divergent, np_, copies, ghosts),
+            lambda rows, copies, ghosts: hyperviscosity.laplacian_element(
+                True, divergent, np_, copies, ghosts, dtype=dtype
+            ),
             [Y, m.operators.as_rows(Y), *tail],
         )
 
-    def _node_laplacian(self, x, c, divergent: bool, swap: bool, second: bool) -> list:
+    def _node_laplacian(self, x, c, divergent: bool, swap: bool, second: bool, depth: float) -> list:
         """``build``'s launches of one weak Laplacian on the per-node layout, a flux pass and
         then the Laplacian's: the first (``second`` False) the weak form of Y₁ in L from ``x``
         (its flux pass forming the Cartesian wind in hv_X as it reads it), the second that of Y₂
-        in L from the DSS of L (Y₁), that DSS first. ``c``, ``divergent`` and ``swap`` as
+        in L from the DSS of L (Y₁), that DSS first. ``c``, ``divergent``, ``swap`` and ``depth`` as
         ``_element_laplacian``'s."""
-        m = self.model
+        m, t = self.model, self.model.tendency_arrays
         N, np_, L, Y = m.N, m.grid.np, self.hv_L, self.hv_Y
         tensor = self.hv_tensor is not None and second != swap
         src = Y if second else self.hv_X  # what laplacian_node reads at its node
         # the first forms X, writes it in hv_X
-        flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np)
+        flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np, self.dtype)
         flux_args = [
             Y if second else x,
             m.operators.hs,
-            self._frame("east", "north"),
-            m.operators.Dinv,
-            m.spheremp,
-            self.hv_tensor if tensor else m.operators.Dinv,  # the tensor's metric, else not read
-            m.operators.dvv,
+            self._frame("east", "north", depth=depth),
+            t.Dinv,
+            t.mass,
+            self.hv_tensor if tensor else t.Dinv,  # the tensor's metric, else not read
+            t.dvv,
             np_,
             self.hv_flux,
-            src,
+            self.hv_X,  # written by the first alone
         ]
         passes = list(m.topology.dss(L, 0, Y)) if second else []  # the first DSS: Y₁
         passes.append(m.launches.nodes(flux, N, flux_args))
-        mass = self.hv_tensor[3] if tensor else m.spheremp  # the weight of the +2Y₁/a² shift
+        mass = self.hv_tensor[3] if tensor else t.mass  # the weight of the +2Y₁/a² shift
         args = [
             self.hv_flux,
             src,
@@ -230,11 +257,11 @@ class Hyperviscosity:
             c,
             self._frame(*() if second else self._first_names(divergent)),
             mass,
-            m.operators.dvv,
+            t.dvv,
             np_,
             L,
         ]
-        kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np)
+        kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np, self.dtype)
         return [*passes, m.launches.nodes(kernel, N, args)]
 
     def _dss_apply(self, x, coef: float, out, mode: str, prev, weights) -> list:
@@ -251,12 +278,14 @@ class Hyperviscosity:
         if by_element:  # the CPU's element rows (``Topology.by_element``)
             return m.topology.by_element(
                 self.hv_L2,
-                lambda rows, copies, ghosts, np_: hyperviscosity.dss_apply_elements(copies, ghosts, np_, mode),
+                lambda rows, copies, ghosts, np_: hyperviscosity.dss_apply_elements(
+                    copies, ghosts, np_, mode, self.dtype
+                ),
                 last,
             )
         return m.topology.gathering(
             self.hv_L2 if m.operators.per_element else self.hv_L,
-            lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode),
+            lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode, dtype=self.dtype),
             last,
         )
 
@@ -277,7 +306,8 @@ class Hyperviscosity:
         2Y₁/a² unscaled, whose units are not those of ∇·(V∇Y₁); scaled, s = 0 is the constant
         operator). V = ``grid.quality.hypervis_tensor`` (ν·V the effective ν ∝ Δx^s per element
         direction), made continuous by a spheremp-weighted DSS over the ranks and then bilinear
-        in each element from its corners, as HOMME's ``dss_hvtensor``. Built once, with the grid."""
+        in each element from its corners, as HOMME's ``dss_hvtensor``. Built once, with the grid,
+        in float64 (in the ∇⁴'s float type: ``dtype``)."""
         m = self.model
         grid = m.grid
         raw = wp.array(hypervis_tensor(grid, scaling), dtype=f64, device=m.device)
@@ -292,7 +322,7 @@ class Hyperviscosity:
         metric = np.stack(
             [w * (a11 * d0 + a12 * d1), w * (a11 * d2 + a12 * d3), w * (a21 * d2 + a22 * d3), w * (V11 + V22) / 2]
         )
-        return wp.array(metric, dtype=f64, device=m.device)
+        return wp.array(metric, dtype=self.dtype, device=m.device)  # rounded once under float32
 
     def _first_names(self, divergent: bool) -> tuple:
         """The node frame's arrays the first ∇⁴ pass reads (``_frame``): the position (and on the
@@ -301,16 +331,19 @@ class Hyperviscosity:
         basis = ("east", "north") if self.model.operators.per_element or divergent else ()
         return ("xyz", *basis, *(("Dinv",) if divergent else ()))
 
-    def _frame(self, *names, rows=False):
-        """A ``kernels.hyperviscosity.Frame`` holding the model's geometry arrays of these
-        names (``ElementOperators``: xyz, east, north, Dinv), the others null: what a ∇⁴ pass reads and no more (a launch's
-        arguments are what ``benchmarks/gpu_model.py`` counts as its traffic);
+    def _frame(self, *names, rows=False, depth=0.0):
+        """A ``kernels.hyperviscosity.frame_type`` of the ∇⁴'s float type holding its geometry
+        arrays of these names (``geometry``: xyz, east, north, Dinv), the others null: what a ∇⁴
+        pass reads and no more (a launch's arguments are what ``benchmarks/gpu_model.py`` counts
+        as its traffic), and the reference ``depth`` H₀ (m; ``build``'s, read by the first pass);
         with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
         m = self.model
-        frame = hyperviscosity.frame_type(operators.row_type(m.grid.np) if rows else f64)()
+        np_ = m.grid.np
+        frame = hyperviscosity.frame_type(operators.row_type(np_, self.dtype) if rows else self.dtype)()
         for name in names:
-            array = getattr(m.operators, name)
+            array = self.geometry[name]
             setattr(frame, name, m.operators.as_rows(array) if rows else array)
+        frame.h0 = operators.row_type(np_)(depth) if rows else depth
         return frame
 
     def operator(self, x: wp.array2d, out: wp.array2d) -> None:
@@ -339,8 +372,8 @@ class Hyperviscosity:
             for launch in m.topology.dss(z, 1, zc):
                 launch.launch()
             lam = 0.0
-            with m.operators.hs_as(wp.zeros_like(m.operators.hs)):  # the operator without the hs offset
-                launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0))
+            with m.operators.hs_as(wp.zeros_like(m.operators.hs)):  # the operator without the hs and H₀ offsets
+                launches = self.build(zc, 1.0, w, nus=(1.0, 1.0, 1.0), depth=0.0)
             for _ in range(iterations):
                 zc.assign(zc.numpy() / m.topology.norm(zc))
                 w.zero_()

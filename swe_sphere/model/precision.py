@@ -1,15 +1,17 @@
-"""The model's precision: the float type its tendency is computed in.
+"""The model's precision: the float type its tendency and its ∇⁴ are computed in.
 
 ``precision = "float32"`` computes the shallow-water tendency (``kernels.tendencies``) in
 float32 from the float64 state, and its DSS sums the float32 element tendencies in float64
-into the float64 stage and step updates (``kernels.dss``). What stays float64, as the ports
-that work keep it (IFS, FESOM2, Klöwer et al. 2022, J. Adv. Model. Earth Syst. 14,
-e2021MS002684): the grid's geometry, computed in float64 and rounded once to float32 for the
-tendency; the state and the accumulation of every increment, small against it (a step changes
-h of 10 km by centimetres: float32's 6e-8 relative spacing would swallow them); the clock;
-the ∇⁴ and the solvers; global sums, invariants and error norms. A float32 tendency reads
-half the geometry's and the tendency's bytes, and on a GPU without fast float64 runs at
-float32's rate.
+into the float64 stage and step updates (``kernels.dss``); the ∇⁴ hyperviscosity
+(``model.hyperviscosity``, ``kernels.hyperviscosity``) the same way: its weak Laplacians and
+work arrays float32, the state read and rounded, its DSSs summed in float64 and its last one
+adding coef·Y₂ to the float64 state in float64. What stays float64, as the ports that work
+keep it (IFS, FESOM2, Klöwer et al. 2022, J. Adv. Model. Earth Syst. 14, e2021MS002684): the
+grid's geometry, computed in float64 and rounded once to float32 for the tendency and the ∇⁴;
+the state and the accumulation of every increment, small against it (a step changes h of
+10 km by centimetres: float32's 6e-8 relative spacing would swallow them); the clock; the
+solvers; global sums, invariants and error norms. A float32 tendency reads half the
+geometry's and the tendency's bytes, and on a GPU without fast float64 runs at float32's rate.
 """
 
 from __future__ import annotations
@@ -32,6 +34,14 @@ def precision_dtype(precision: str):
     if not isinstance(precision, str) or precision not in PRECISIONS:
         raise ArgumentError(f"precision must be one of {', '.join(PRECISIONS)} (got {got(precision)})")
     return PRECISIONS[precision]
+
+
+def rounded(a: wp.array | None, dtype) -> wp.array | None:
+    """The float64 array ``a`` in ``dtype``: ``a`` itself under float64, else a copy rounded once
+    (on a's device); None for None."""
+    if a is None or dtype is wp.float64:
+        return a
+    return wp.array(a.numpy(), dtype=dtype, device=a.device)
 
 
 class TendencyArrays(NamedTuple):
@@ -66,14 +76,10 @@ class TendencyArrays(NamedTuple):
         tend = wp.zeros((3, ops.N), dtype=dtype, device=ops.D.device)
         if dtype is wp.float64:
             return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
-
-        def rounded(a):
-            return None if a is None else wp.array(a.numpy(), dtype=dtype, device=a.device)
-
         dvv = np.asarray(ops.grid.rule.dvv)
         return cls(
             dtype,
-            *map(rounded, (ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv)),
+            *(rounded(a, dtype) for a in (ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv)),
             operators.dvv_matrix(dvv, dtype),
             tend,
             float(depth),

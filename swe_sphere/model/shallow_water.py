@@ -147,9 +147,9 @@ class ShallowWater:
         unique-node vectors, global reductions); None: one over the whole grid.
         Its ``backend`` (``core.backend``) is the model's ``backend``, the device's
         choices decided once.
-    precision : "float64" (default) or "float32": the float type the tendency is computed in
-        (``model.precision``: the state, its updates, the ∇⁴ and every sum stay float64).
-    depth : a float32 tendency's reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
+    precision : "float64" (default) or "float32": the float type the tendency and the ∇⁴ are
+        computed in (``model.precision``: the state, its updates and every sum stay float64).
+    depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
         (no shift); ``from_case`` gives the midpoint of its initial depth's extremes.
 
     The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h

@@ -27,7 +27,7 @@ def _precision(path) -> tuple[str, str]:
 def test_a_float32_run_records_its_precision_and_continues_in_it(capsys, tmp_path):
     code, out, err = cli_main(capsys, *RUN, "--precision", "float32", "--output", "r.nc")
     assert code == 0, err
-    assert "precision   float32 (tendency; state float64)" in out.splitlines()
+    assert "precision   float32 (tendency and hyperviscosity; state float64)" in out.splitlines()
     for name in ("r.nc", "r.restart.nc"):
         attribute, scene = _precision(name)
         assert attribute == "float32" and '"precision": "float32"' in scene, (name, scene)
@@ -41,7 +41,7 @@ def test_a_float32_run_records_its_precision_and_continues_in_it(capsys, tmp_pat
     assert nc_files(tmp_path) == before
     code, out, err = cli_main(capsys, *cont, "--precision", "float32", "--output", "c.nc")
     assert code == 0, err
-    assert "precision   float32 (tendency; state float64)" in out.splitlines()
+    assert "precision   float32 (tendency and hyperviscosity; state float64)" in out.splitlines()
     assert _precision("c.nc")[0] == "float32"
 
 

@@ -6,10 +6,10 @@ branches, the solver kernels) fails here on every machine. The modules are
 found, not listed: every ``wp.Kernel`` defined at module level in
 ``swe_sphere.kernels``'s submodules, plus every project kernel launched while
 each bundled scene's model (both layouts: per node, CUDA's default, and per
-element; float64 and a float32 tendency) takes two steps of its stepper on ne = 2 np = 4 on
+element; float64 and float32, its tendency and ∇⁴) takes two steps of its stepper on ne = 2 np = 4 on
 the CPU, every
 stepper (its solvers are the same on every device) on the scene
-with the most terms, the ∇⁴ with ν_div ≠ ν and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
+with the most terms, the ∇⁴ with ν_div ≠ ν and the tensor (both precisions) and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
 """
@@ -124,12 +124,23 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                     basis = stepper.kiops.basis if name == "epi2" else stepper.fgmres
                     basis.vectors, stepper.jacobian.passes = KernelVectors(basis), KernelPasses(model)
                     stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
-    for per_element in (False, True):  # the ∇⁴'s ∇(∇·v) term, which no bundled scene has (ν_div ≠ ν)
+    # the ∇⁴'s ∇(∇·v) term and its tensor, which no bundled scene has (ν_div ≠ ν, hypervis_scaling)
+    for per_element, precision in [(e, p) for e in (False, True) for p in ("float64", "float32")]:
         z = np.zeros(grid.nnodes)
         model = ShallowWater(
-            grid, ["hyperviscosity"], z, z, nu=1e15, nu_div=3e15, device="cpu", per_element=per_element
+            grid,
+            ["hyperviscosity"],
+            z,
+            z,
+            nu=1e15,
+            nu_div=3e15,
+            hypervis_scaling=3.2,
+            device="cpu",
+            per_element=per_element,
+            precision=precision,
         )
         model.hyperviscosity(model.new_state(), 100.0)
+        model.hv.rkl1(model.new_state(), 100.0, 2)  # its last pass's RKL1 modes
     # the element filter ([filter]), which no bundled scene has
     z = np.zeros(grid.nnodes)
     ShallowWater(grid, ["continuity"], z, z, element_filter=(0.1, 12.0, 2 / 3), device="cpu").hyperviscosity(
@@ -199,11 +210,12 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
             both = ([False, True], [False, False, True, True])
             assert sorted("__np4" in n for n in tendency) in both, (terms, precision, tendency)
     keys = {k.key for k in launched}
-    for key in (
+    hv = (
         "laplacian_element__first",
         "laplacian_element__second",
         "laplacian_flux__cartesian__np4",
         "laplacian_flux__rows__np4",
+        "laplacian_flux__rows__tensor__np4",
         "laplacian_node__first__np4",
         "laplacian_node__second__np4",
         "dss_apply",
@@ -211,6 +223,10 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "dss_apply__rkl",
         "laplacian_element__first__divergent",
         "laplacian_node__first__divergent__np4",
+    )
+    for key in (
+        *hv,
+        *(k + "_float32" for k in hv),  # the float32 ∇⁴'s
         "helmholtz_gradient",
         "helmholtz_divergence",
         "helmholtz_assemble",

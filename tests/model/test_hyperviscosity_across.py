@@ -1,7 +1,8 @@
 """The ∇⁴'s weak Laplacians with several elements a vector (``kernels.hyperviscosity.laplacian_across``,
 the CPU's form at np ≥ 5) give the rows' bits (``laplacian_element``, one element a thread): the
 operator and a few applications, forward Euler and RKL1, on cubes whose element count is not a
-multiple of the lanes (the rest on rows), split over two threads, and on an icosahedral mesh."""
+multiple of the lanes (the rest on rows), split over two threads, and on an icosahedral mesh;
+in float32 too."""
 
 from __future__ import annotations
 
@@ -29,9 +30,10 @@ GRIDS = {
 }
 
 
-def model(g, lanes: int, threads: int, divergent: bool) -> ShallowWater:
+def model(g, lanes: int, threads: int, divergent: bool, precision: str = "float64") -> ShallowWater:
     """TC5's ∇⁴ on g with ``lanes`` elements a vector (0: the rows); ``divergent``: with
-    ν_div ≠ ν (the ∇δ term) and the tensor's second Laplacian (``hypervis_scaling``)."""
+    ν_div ≠ ν (the ∇δ term) and the tensor's second Laplacian (``hypervis_scaling``); in
+    ``precision`` (float32: the free surface from H₀ = 5 km)."""
     c = make_case("tc5_mountain")
     extra = {"nu_div": 2.5e15, "hypervis_scaling": 3.2} if divergent else {}
     with mock.patch.object(Hyperviscosity, "across_elements", lanes):
@@ -43,6 +45,8 @@ def model(g, lanes: int, threads: int, divergent: bool) -> ShallowWater:
             nu=1e15,
             device="cpu",
             threads=threads,
+            precision=precision,
+            depth=5.0e3 if precision == "float32" else None,
             **extra,
         )
 
@@ -69,6 +73,17 @@ def test_across_gives_the_rows_bits(name, divergent):
     g = make()
     across, rows = model(g, 16, threads, divergent), model(g, 0, threads, divergent)
     assert across.hv.lanes == 16 and rows.hv.lanes == 0
+    for got, want in zip(outputs(across), outputs(rows)):
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+@pytest.mark.parametrize("divergent", [False, True], ids=["nu_div = nu", "nu_div != nu, tensor"])
+def test_across_gives_the_rows_bits_in_float32(divergent):
+    """A float32 ∇⁴ (``ShallowWater``'s precision; 16 float32 elements a vector, one AVX-512
+    register) across elements has its rows' bits too: cube ne3 np6."""
+    g = cached_grid(3, 6)
+    across, rows = model(g, 16, 1, divergent, "float32"), model(g, 0, 1, divergent, "float32")
+    assert across.hv.lanes == 16 and rows.hv.lanes == 0 and across.hv.hv_L.dtype == wp.float32
     for got, want in zip(outputs(across), outputs(rows)):
         assert np.array_equal(got.view(np.int64), want.view(np.int64))
 

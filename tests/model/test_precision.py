@@ -65,6 +65,44 @@ def test_the_reference_depth_keeps_the_pressure_gradient_s_digits():
     assert shifted * 16 < plain and shifted < 64 * EPS32 * np.abs(exact).max()
 
 
+def _hyperviscosity_increment(scene, grid, x0, **options):
+    """The increment (3, N) of ``scene``'s ∇⁴ over its Δt on ``grid`` from the state x0, and the model."""
+    model = ShallowWater.from_scene(scene, grid, **options)
+    x = model.new_state(*x0)
+    model.hyperviscosity(x, scene.dt)
+    return x.numpy() - x0, model
+
+
+@pytest.mark.parametrize("np_, per_element", [(4, True), (6, True), (4, False)])
+def test_the_float32_hyperviscosity_is_float64_s_to_float32_round_off(np_, per_element):
+    """Galewsky's ∇⁴ over its Δt (np 4: one forward-Euler substep, on rows or per node; np 6: a
+    two-stage RKL1 step, its weak Laplacians 16 elements a vector, 54 elements: three blocks and
+    6 on rows): each row of the float32 increment within 4 ε₃₂ max|X| an evaluation of
+    float64's, X what the ∇⁴ reads (the wind, h + hs − H₀). A stable step has |coef ν λ| ≤ 1.5
+    (λ the ∇⁴'s spectral radius), so the rounding of X (ε₃₂/2 |X|) moves an increment by
+    ≤ 0.75 ε₃₂ |X|, the float32 sums adding theirs (measured 0.04–0.45 ε₃₂ |X| at np 4, 0.1–1.5
+    over np 6's two stages: 2–9 ε₃₂ of np 4's increment, 26–97 of np 6's smaller one); and not
+    float64's bits. Mass: float64's ∇⁴ keeps it to ε₆₄ (an element's weak Laplacian sums to 0 over
+    its nodes, Σᵢ dvv[m, i] = 0), float32's to its round-off of those sums, within ε₃₂ ∫|Δh|
+    (measured 0.0015 ε₃₂ ∫|Δh| on rows, 0.011 per node, 0.03 across at np 6: a relative mass
+    change of 3e-14 to 2e-13 a step)."""
+    scene = load_scene("galewsky", ne=3, np_=np_)
+    grid = cached_grid(3, np_)
+    x0 = np.stack(scene.make_case().initial(grid.lat, grid.lon))
+    (d64, m64), (d32, m32) = (
+        _hyperviscosity_increment(scene, grid, x0, per_element=per_element, precision=p) for p in ("float64", "float32")
+    )
+    evaluations = m32.hv.plan(scene.dt)[0]
+    assert m64.hv.plan(scene.dt) == m32.hv.plan(scene.dt) == ((1, False) if np_ == 4 else (2, True))
+    assert m32.hv.lanes == (16 if np_ == 6 else 0) and m32.hv.hv_L.dtype == wp.float32
+    hs, depth = m32.operators.hs.numpy(), m32.tendency_arrays.depth
+    speed = np.hypot(x0[0], x0[1]).max()
+    X = np.array([speed, speed, np.abs(x0[2] + hs - depth).max()])
+    apart = np.abs(d32 - d64).max(axis=1)
+    assert np.all(apart <= 4 * evaluations * EPS32 * X) and np.all(apart > 0), apart / (EPS32 * X)
+    assert abs(grid.integrate(d32[2])) <= EPS32 * grid.integrate(np.abs(d64[2]))
+
+
 def test_a_float32_run_keeps_float64_s_error_and_mass():
     """TC2 (steady geostrophic flow, exact solution) ne4 np4 for a day with rk4: the float32 run's h
     error within 1 % of float64's, its h within 1 % of that error of float64's h; its mass to the

@@ -64,7 +64,7 @@ def main() -> None:
         sets["levels >= 1 (lts's fast part)"] = levels.level >= 1
     for gap in args.gap:
         for name, chosen in sets.items():
-            part = ElementPart.of(model.topology, np.flatnonzero(chosen), gap)
+            part = ElementPart.of(model, np.flatnonzero(chosen), gap)
             buf = wp.zeros_like(x)
             label = f"{name}, gap {gap}: {len(part.runs)} ranges"
             calls[label] = (part.nelem, lambda p=part, b=buf: model.rhs_part(x, b, p))

@@ -64,15 +64,16 @@ class ElementPart(NamedTuple):
     exact: list
 
     @classmethod
-    def of(cls, topology, elements, gap: int = 0, whole=None, dtype=f64) -> ElementPart:
-        """The part of ``elements`` (indices of elements ``topology`` holds, ascending, distinct):
-        its tendency kernels run over ranges of consecutive elements that hold them, two
-        ranges merged where at most ``gap`` other elements lie between (computed, and left
+    def of(cls, model, elements, gap: int = 0, whole=None) -> ElementPart:
+        """The part of ``elements`` (indices of elements ``model``'s topology holds, ascending,
+        distinct): its tendency kernels run over ranges of consecutive elements that hold them,
+        two ranges merged where at most ``gap`` other elements lie between (computed, and left
         out of the assembly: a launch's fixed cost against theirs); its DSS gathers its
         own elements' copies alone (``Topology.part_copies``), with ``whole`` (nelem_total,)
         bool, the part over the whole grid, those other ranks hold too (needed on several
-        ranks); ``dtype`` its tendency's float type (the model's ``TendencyArrays.dtype``). ValueError for indices that are not ascending, distinct elements held;
-        ``gap`` < 0; several ranks without ``whole``."""
+        ranks); its tendency in the model's precision. ValueError for indices that are not
+        ascending, distinct elements held; ``gap`` < 0; several ranks without ``whole``."""
+        topology = model.topology
         e = np.asarray(elements, dtype=np.int64)
         nelem = topology.grid.nelem
         if e.ndim != 1 or (e.size and (e[0] < 0 or e[-1] >= nelem or np.any(np.diff(e) <= 0))):
@@ -80,7 +81,7 @@ class ElementPart(NamedTuple):
         if isinstance(gap, bool) or int(gap) != gap or gap < 0:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
         nodes, copies = topology.part_copies(e, whole)
-        tend = wp.zeros((3, topology.N), dtype=dtype, device=topology.device)
+        tend = wp.zeros((3, topology.N), dtype=model.tendency_arrays.dtype, device=topology.device)
         return cls(element_runs(e, gap), int(e.size), nodes, copies, tend, element_runs(e, 0))
 
 

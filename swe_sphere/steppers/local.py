@@ -356,9 +356,7 @@ def level_part(model, whole: np.ndarray):
     """The ``ElementPart`` of the elements held here among ``whole`` (nelem_total,) bool,
     a part of the whole grid's elements (``ElementPart.of``, ranges merged over
     ``LAUNCH_GAP``)."""
-    return ElementPart.of(
-        model.topology, np.flatnonzero(whole[model.topology.elements]), LAUNCH_GAP, whole, model.tendency_arrays.dtype
-    )
+    return ElementPart.of(model, np.flatnonzero(whole[model.topology.elements]), LAUNCH_GAP, whole)
 
 
 def _explicit(name: str) -> type[Stepper]:

@@ -61,6 +61,7 @@ def test_tendency_adjoint_is_the_derivative_of_the_per_node_kernel():
         model.operators.dvv,
         4,
         model.g,
+        0.0,  # h0, unread in float64
     ]
 
     def tendency(x):

@@ -27,7 +27,7 @@ import warp as wp
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import tendencies, tendency_adjoint
-from swe_sphere.kernels.operators import CPU_FAST
+from swe_sphere.kernels.operators import CPU_FAST, row_type
 from swe_sphere.model.shallow_water import ShallowWater
 
 f64 = wp.float64
@@ -104,7 +104,8 @@ class TendencyVJP:
         hand = tendency_adjoint.element(terms, np_, 1)
         args = [*map(R, (*metric, self.spheremp)), m.g, m.operators.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
         self._hand = wp.launch(hand, nelem, [*args, R(self.xbar), R(self.fbar), 0], record_cmd=True)
-        inputs = [*map(R, (*metric, forcing, self.spheremp)), m.g, m.operators.dvv_rows, R(self.tend), 0]
+        h0 = row_type(np_)(0.0)  # the float64 tendency's unread reference depth
+        inputs = [*map(R, (*metric, forcing, self.spheremp)), m.g, h0, m.operators.dvv_rows, R(self.tend), 0]
         self._forward = wp.launch(tendencies.tendency_element(terms, np_), nelem, inputs, record_cmd=True)
         # adjoints of the metric terms not asked for: Warp skips a null adjoint array's adds
         adj = [
@@ -116,6 +117,7 @@ class TendencyVJP:
             R(self.fbar_ad),
             None,
             0.0,
+            h0,
             m.operators.dvv_rows,
             R(self.adj_tend),
             0,
@@ -166,6 +168,7 @@ def tendency(model: ShallowWater, x: np.ndarray) -> np.ndarray:
             ),
         ),
         m.g,
+        row_type(m.grid.np)(0.0),  # h0, unread in float64
         m.operators.dvv_rows,
         R(tend),
         0,

@@ -40,7 +40,7 @@ def test_the_levels_tendencies_add_up_to_the_assembled_one(per_element, gap):
     parts, total = [], np.zeros((3, model.N))
     for k in range(levels.count):
         mine = np.flatnonzero(levels.level == k)
-        part = ElementPart.of(model.topology, mine, gap)
+        part = ElementPart.of(model, mine, gap)
         assert part.nelem == levels.elements_per_level()[k]
         ranges = 1 + np.count_nonzero(np.diff(mine) > 1)  # of consecutive elements
         assert len(part.runs) == ranges if gap == 0 else len(part.runs) < ranges
@@ -66,11 +66,11 @@ def test_part_elements_outside_the_grid_are_refused():
     grid = CubedSphere(1, 4)
     _, model = case_model(grid, "tc2_steady", TC5_TERMS[:4], threads=1)
     with pytest.raises(ValueError, match="part elements must be ascending distinct indices in 0..5"):
-        ElementPart.of(model.topology, [3, 7])
+        ElementPart.of(model, [3, 7])
     with pytest.raises(ValueError, match="part elements must be ascending"):
-        ElementPart.of(model.topology, [2, 0])
+        ElementPart.of(model, [2, 0])
     with pytest.raises(ValueError, match="gap must be an integer >= 0"):
-        ElementPart.of(model.topology, [0, 1], -1)
+        ElementPart.of(model, [0, 1], -1)
 
 
 @pytest.mark.parametrize("per_element", [True, False])

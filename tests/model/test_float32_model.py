@@ -1,6 +1,6 @@
-"""A float32 tendency (``ShallowWater(precision="float32")``, ``model.precision``): its round-off
-against float64's, the reference depth that keeps the pressure gradient's digits, a run's error
-and mass against float64's, and a continuation that has the uninterrupted run's bits."""
+"""A float32 model (``ShallowWater(precision="float32")``, ``model.precision``): its tendency's and
+∇⁴'s round-off against float64's, the reference depth that keeps the pressure gradient's digits, a
+run's error and mass against float64's, and a continuation that has the uninterrupted run's bits."""
 
 import numpy as np
 import pytest

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from ..core.arguments import got
-from ..core.clock import common_interval
+from ..core.clock import Clock, common_interval
 from ..core.constants import DAY
 from ..core.errors import SceneError
 from ..model.hyperviscosity import evaluations
@@ -166,7 +166,8 @@ def sparse_dt(dt: float, intervals: tuple, every: float, days: float, span: floa
 
     def cost(m: int) -> float:
         step = common / m
-        k = auto_every(span, step, (round(every * DAY / step), round(days * DAY / step)))
+        clock = Clock(step)
+        k = auto_every(span, step, (clock.steps_in(every), clock.steps_in(days)))
         return m * (1 + HV_SHARE * evaluations(stiffness * k * step, subcycle)[0] / k)
 
     # k(m) ≤ span·m/C and a ∇⁴ takes one evaluation at least: no more steps than this can pay

@@ -436,6 +436,8 @@ def resolve_dt(
     else:
         dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams, np_factor)
         clock = Clock(dt, 0.0, days)
+        if restart is not None:  # too many restart files refused before a dt is cut to divide them
+            clock.check_times("the restart interval", restart)
         if restart is not None and not clock.is_whole(restart):  # the run's restart files too
             cut = clock.fitted(days, restart, *(e for e in (every, *streams) if e < days)).dt
             notes = (*notes, f"dt cut from {dt:g} s to {cut:g} s to divide the restart interval of {restart:g} days")

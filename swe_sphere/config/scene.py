@@ -77,7 +77,8 @@ import os
 from pathlib import Path
 
 from ..core.arguments import instance_argument, mapping_argument
-from ..core.constants import DAY, EARTH
+from ..core.clock import Clock
+from ..core.constants import EARTH
 from ..core.errors import SceneError
 from .control import cfl_notes, is_controlled, resolve_control
 from .hyperviscosity import (
@@ -339,7 +340,8 @@ def _dissipation(s: dict, hv, hv_notes, grid, spacing, dt: float, spans: tuple, 
     ``s`` at ``dt`` (s), with ``spans`` = (the output interval, the run) in days
     (``resolve_every``, ``resolve_filter``)."""
     every, days = spans
-    steps = (round(every * DAY / dt), round(days * DAY / dt))  # an output interval's and the run's
+    clock = Clock(dt)
+    steps = (clock.steps_in(every), clock.steps_in(days))  # an output interval's and the run's
     k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
     element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
     return dataclasses.replace(hv, every=k), element_filter, hv_notes + every_notes + filter_notes

@@ -45,6 +45,12 @@ def common_interval(*days: float) -> float:
     return float(Fraction(math.gcd(*(int(p * denominator) for p in parts)), denominator))
 
 
+def _count(n: float) -> str:
+    """A count of steps or times for a refusal: 3 digits, or "more than 1e+308" past a float's
+    range (a run of 0.1 days with an interval of 5e-324 days)."""
+    return f"{n:.3g}" if math.isfinite(n) else "more than 1e+308"
+
+
 def _whole_step_days(dt: float) -> Fraction | None:
     """The shortest decimal number of days that is a whole number of steps of ``dt`` (s), when a
     day is a rational number of them with a denominator up to 1000 (dt = 86400/408 s: 0.125
@@ -93,8 +99,9 @@ class Clock:
 
     def steps_in(self, days: float) -> int:
         """The one rounding of days to steps: the nearest whole number of steps in ``days``
-        (whole or not: ``is_whole``)."""
-        return round(days * DAY / self.dt)
+        (whole or not: ``is_whole``); exact past a float's range (an interval of 1e308 days)."""
+        steps = days * DAY / self.dt
+        return round(steps) if math.isfinite(steps) else round(Fraction(days) * Fraction(DAY) / Fraction(self.dt))
 
     def times_in(self, every: float) -> int:
         """How many intervals of ``every`` days (> 0) end within the run (its length; a hair
@@ -103,11 +110,12 @@ class Clock:
 
     def is_whole(self, days) -> bool:
         """The one whole-step rule: ``days`` is a number > 0 and within 1e-6 of a step of a
-        positive whole number of steps."""
+        positive whole number of steps; or of more steps than a run takes (``MAX_STEPS``: no run
+        reaches its end, and past 1e303 days a float cannot tell)."""
         if not is_interval(days):
             return False
         n = self.steps_in(days)
-        return n >= 1 and abs(n * self.dt - days * DAY) <= 1e-6 * self.dt
+        return n > MAX_STEPS or n >= 1 and abs(n * self.dt - days * DAY) <= 1e-6 * self.dt
 
     def steps(self, days, what: str) -> int:
         """The whole number of steps in ``days``. Raises ``SceneError`` naming ``what``: an
@@ -140,10 +148,10 @@ class Clock:
         """Refuse (``SceneError`` naming ``what``) an interval of ``every`` days (> 0) that gives
         more than ``MAX_TIMES`` times (outputs, restart files) over the run: O(1), before any
         schedule is listed (a dt cut to divide 1e-9 days made 1e8 of them)."""
-        times = self.times_in(every)
-        if times > MAX_TIMES:
+        times = self.length / every + 1e-9  # ``times_in`` unrounded: inf past a float's range (5e-324 days)
+        if times >= MAX_TIMES + 1:
             raise SceneError(
-                f"{what} of {every:g} days gives {times:.3g} times over the run of "
+                f"{what} of {every:g} days gives {_count(times)} times over the run of "
                 f"{self.length:g} days (more than {MAX_TIMES:.0e}): give a longer interval"
             )
 
@@ -156,8 +164,9 @@ class Clock:
         for what, every in (intervals or {}).items():
             self.check_times(what, every)
         if self.nsteps > MAX_STEPS:
+            steps = _count(self.length * DAY / self.dt)
             raise SceneError(
-                f"dt = {self.dt:g} s gives {self.nsteps:.3g} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"
+                f"dt = {self.dt:g} s gives {steps} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"
             )
         if self.controlled:
             return

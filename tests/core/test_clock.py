@@ -67,3 +67,16 @@ def test_common_interval_and_the_fitted_clock():
     assert fitted.dt == 43200 / 14 and fitted.nsteps == 28 and fitted.source == "fitted"
     assert Clock(3200.0, 0.0, 1.0).fitted(1.0).dt == 86400 / 27  # 27 steps a day
     assert Clock(150.0).fitted(1.0).dt == 150.0  # already whole: unchanged
+
+
+def test_an_interval_past_a_floats_range_is_counted_not_overflowed():
+    """`run tc2_steady --days 0.1 --restart-every 1e308` ended in "internal error: OverflowError"
+    (1e308 days is more seconds than a float holds): it is whole, reached by no run; 5e-324 days
+    is refused as too many times, a dt of 5e-324 s as too many steps."""
+    clock = Clock(2160.0, 0.0, 0.1)
+    assert clock.is_whole(1e308) and clock.steps(1e308, "the restart interval") > MAX_STEPS
+    clock.check({"the output interval": 1e308})
+    with pytest.raises(SceneError, match=r"^the restart interval of 4.94066e-324 days gives more than 1e\+308 times"):
+        clock.check_times("the restart interval", 5e-324)
+    with pytest.raises(SceneError, match=r"^dt = 4.94066e-324 s gives more than 1e\+308 steps to day 0.1"):
+        Clock(5e-324, 0.0, 0.1).check()

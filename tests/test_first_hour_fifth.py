@@ -1,0 +1,41 @@
+"""A new user's first hour, a fifth pass (issue 117): the newest features' edges. Each refusal is
+one line, exit 2, made before anything is written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from helpers import TINY, cli_main, one_line
+
+RUN = ("run", "tc2_steady", *TINY, "--days", "0.1")
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "scene, options",
+    [
+        ("tc2_steady", ["-s", "output.every_days=1e308"]),
+        ("tc2_steady", ["--restart-every", "1.7976931348623157e308"]),
+        ("tc5_mountain", ["-s", "output.every_days=1e308", "--restart-every", "1e308"]),  # "auto" ∇⁴ schedule
+    ],
+)
+def test_an_interval_of_1e308_days_runs(capsys, scene, options):
+    """`run tc2_steady --ne 4 --days 0.1 -s output.every_days=1e308` (and `--restart-every 1e308`)
+    ended in "internal error: OverflowError": the ∇⁴'s schedule and the whole-step rule counted
+    1e308 days in seconds. An interval past the run is its end."""
+    code, out, err = cli_main(capsys, "run", scene, *RUN[2:], *options, "--output", "c.nc")
+    assert code == 0 and err == "", err
+    assert "e+308 days" in out and Path("c.nc").exists()
+
+
+@pytest.mark.parametrize("option", [["-s", "output.every_days=5e-324"], ["--restart-every", "5e-324"]])
+def test_an_interval_of_5e_324_days_is_refused(capsys, option):
+    code, out, err = cli_main(capsys, *RUN, *option, "--output", "c.nc")
+    one_line(code, err, 2, "interval", "4.94066e-324 days gives more than 1e+308 times")
+    assert out == "" and list(Path().iterdir()) == []

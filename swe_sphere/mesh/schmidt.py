@@ -40,9 +40,10 @@ def schmidt(xyz: np.ndarray, stretch_factor: float, target: np.ndarray) -> np.nd
     if c == 1:  # the identity: kept exact, so that c = 1 is the unstretched cube bit for bit
         return xyz
     z = xyz @ target
-    below = (c * c + 1) + (c * c - 1) * z
-    cos_new = ((c * c - 1) + (c * c + 1) * z) / below
-    across = (2 * c / below)[:, None] * (xyz - z[:, None] * target)
+    # those over 2c, in cos²(θ/2) and sin²(θ/2): no c² to lose the 1 of c² ± 1 (c = 1e9) or overflow
+    near, far = c * (0.5 + 0.5 * z), (0.5 - 0.5 * z) / c
+    cos_new = (near - far) / (near + far)
+    across = (xyz - z[:, None] * target) / (near + far)[:, None]
     out = cos_new[:, None] * target + across
     return out / np.linalg.norm(out, axis=1)[:, None]
 

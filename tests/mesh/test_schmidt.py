@@ -4,6 +4,7 @@ the target with a resolution ratio c² between the target and its antipode, and 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -75,6 +76,15 @@ def test_a_stretched_grid_keeps_the_sphere_area_and_the_mass_matrix_positive():
 def test_a_bad_stretch_is_refused(args, message):
     with pytest.raises(ValueError, match=message):
         schmidt_cube(2, *args)
+
+
+@pytest.mark.parametrize("c", [1e9, 1e200, 1.7976931348623157e308])
+def test_a_huge_stretch_is_refused_as_a_fold_without_warnings(c):
+    """`swe-sphere mesh --ne 4 --stretch-factor 1e9`: three numpy RuntimeWarnings (c² + 1 rounded to
+    c², a division by 0 at the antipode) before "node 94 is not on the unit sphere (|x| = nan)"."""
+    with warnings.catch_warnings(), pytest.raises(ValueError, match="is (not convex|clockwise) seen from outside"):
+        warnings.simplefilter("error")
+        check(schmidt_cube(4, c, 90.0, 0.0))
 
 
 def test_tc2_on_a_stretched_cube_converges_spectrally_in_np_and_keeps_its_mass():

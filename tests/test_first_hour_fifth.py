@@ -39,3 +39,11 @@ def test_an_interval_of_5e_324_days_is_refused(capsys, option):
     code, out, err = cli_main(capsys, *RUN, *option, "--output", "c.nc")
     one_line(code, err, 2, "interval", "4.94066e-324 days gives more than 1e+308 times")
     assert out == "" and list(Path().iterdir()) == []
+
+
+def test_bad_ensemble_degrees_are_named_before_a_missing_members(capsys):
+    """`--members 2 --perturbation 1 -s ensemble.degrees=[20,1]` was refused as "ensemble.members is
+    missing"; the degrees are the problem."""
+    code, out, err = cli_main(capsys, *RUN, "--members", "2", "--perturbation", "1", "-s", "ensemble.degrees=[20,1]")
+    one_line(code, err, 2, "ensemble.degrees must be [l_min, l_max]", "(got [20, 1])")
+    assert out == "" and list(Path().iterdir()) == []

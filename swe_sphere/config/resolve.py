@@ -184,10 +184,6 @@ def resolve_ensemble(table: dict | None) -> dict | None:
     if not table:
         return None
     members, amplitude, seed = table.get("members"), table.get("perturbation", 0.0), table.get("seed", 0)
-    if members is None:
-        raise SceneError("ensemble.members is missing: an [ensemble] table names its members (an integer >= 1)")
-    if members < 1:
-        raise SceneError(f"ensemble.members must be an integer >= 1 (got {members!r})")
     if not (math.isfinite(amplitude) and amplitude >= 0):
         raise SceneError(f"ensemble.perturbation must be a number of metres >= 0 (got {amplitude!r})")
     if seed < 0:
@@ -201,6 +197,11 @@ def resolve_ensemble(table: dict | None) -> dict | None:
         raise SceneError(
             f"ensemble.degrees must be [l_min, l_max], integers 1 <= l_min <= l_max (got {list(degrees)!r})"
         )
+    # the values given first: -s ensemble.degrees=[20,1] with --members is refused for its degrees
+    if members is None:
+        raise SceneError("ensemble.members is missing: an [ensemble] table names its members (an integer >= 1)")
+    if members < 1:
+        raise SceneError(f"ensemble.members must be an integer >= 1 (got {members!r})")
     out = {"members": int(members), "perturbation": float(amplitude), "seed": int(seed)}
     return out | ({} if degrees is None else {"degrees": tuple(degrees)})
 

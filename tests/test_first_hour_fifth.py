@@ -47,3 +47,13 @@ def test_bad_ensemble_degrees_are_named_before_a_missing_members(capsys):
     code, out, err = cli_main(capsys, *RUN, "--members", "2", "--perturbation", "1", "-s", "ensemble.degrees=[20,1]")
     one_line(code, err, 2, "ensemble.degrees must be [l_min, l_max]", "(got [20, 1])")
     assert out == "" and list(Path().iterdir()) == []
+
+
+def test_plot_animate_to_a_file_name_writes_that_file(capsys):
+    """`plot good.nc --animate --output p.gif` made a folder p.gif/ holding good_h_surface.gif."""
+    assert cli_main(capsys, *RUN, "-s", "output.every_days=0.05", "--output", "r.nc")[0] == 0
+    code, out, err = cli_main(capsys, "plot", "r.nc", "--animate", "--width", "400", "--output", "p.gif")
+    assert code == 0 and out.splitlines() == ["p.gif"], err
+    assert Path("p.gif").is_file()
+    code, _, err = cli_main(capsys, "plot", "r.nc", "--animate", "--output", "p.gif")
+    one_line(code, err, 2, "exists")

@@ -259,7 +259,13 @@ def _plot(sub, parents) -> None:
         metavar="REFERENCE",
         help="map the difference to another run file or a reference: a file or a bundled truncation (T213, T341)",
     )
-    pl.add_argument("--output", type=path, default=Path("."), metavar="DIR", help="folder for the PNGs (default: .)")
+    pl.add_argument(
+        "--output",
+        type=path,
+        default=Path("."),
+        metavar="DIR",
+        help="folder for the PNGs (default: .); with --animate a name ending .gif or .mp4 is the file",
+    )
     pl.add_argument(
         "--lat-range", nargs=2, type=float, metavar=("SOUTH", "NORTH"), help="map only this latitude band (degrees)"
     )

@@ -65,7 +65,8 @@ def animate_run(
 ) -> Path:
     """``swe-sphere plot --animate``: ``field`` of the run file ``run_path`` at ``days`` (default:
     every output time; at least two), one frame each, into ``outdir``/``<run>_<field>.<fmt>``
-    (``animation_name``; of an ensemble's file, of ``member``), 800 pixels wide or ``width``. Every input is checked before
+    (``animation_name``; of an ensemble's file, of ``member``), or into ``outdir`` itself where
+    it is no folder and its name ends in ``.<fmt>`` (``p.gif``), 800 pixels wide or ``width``. Every input is checked before
     anything is written: ``ValueError`` (one line) for an unknown field or format, a day the run
     does not store, fewer than two frames, a run file it cannot read; ``OutputError`` for a file
     that exists (unless ``overwrite``) or would replace the input. Returns the file's path."""
@@ -75,7 +76,8 @@ def animate_run(
     check_view(member, [field])
     if field not in MAP_FIELDS:
         raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
-    outdir = check_outdir(outdir, lat_range)
+    named = Path(outdir) if Path(outdir).suffix.lower() == f".{fmt}" and not Path(outdir).is_dir() else None
+    outdir = check_outdir(outdir if named is None else named.parent, lat_range)
     ds = open_run(run_path, member)
     try:
         grid = run_grid(ds)
@@ -86,7 +88,7 @@ def animate_run(
             time_index(ds, day)  # a day the run does not store: one line
         if len(frames) < 2:
             raise ValueError(f"{run_path}: an animation needs two output times or more (got {len(frames)})")
-        path = outdir / animation_name(named_after(run_path, member), field, fmt, lat_range)
+        path = named or outdir / animation_name(named_after(run_path, member), field, fmt, lat_range)
         check_distinct([path], [run_path])
         if outdir.is_dir():  # a folder still to be made holds none
             check_target(path, overwrite)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -103,30 +102,39 @@ def timed(clock, fn, repeat: int) -> float:
     return (clock() - t0) / repeat
 
 
+# run in a process of its own, so that RUSAGE_CHILDREN is this run's peak alone (a parent's own
+# RUSAGE_CHILDREN is the largest of all its children so far)
+PEAK = (
+    "import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+    "sys.stderr.write(r.stderr[-2000:]); print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
+    "sys.exit(r.returncode)"
+)
+
+
 def child_peak_rss(ne: int, precision: str) -> float:
     """Peak RSS (MiB) of a child running TC5 at ne np4 for a few steps in ``precision``."""
     with tempfile.TemporaryDirectory() as tmp:
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         cmd = [sys.executable, "-m", "swe_sphere.cli", "run", "tc5_mountain", "--ne", str(ne), "--days", "0.01"]
         cmd += ["--precision", precision, "--no-progress", "--output", os.path.join(tmp, "run.nc")]
-        p = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "SWE_SPHERE_THREADS": "1"})
+        env = {**os.environ, "SWE_SPHERE_THREADS": "1"}
+        p = subprocess.run([sys.executable, "-c", PEAK, *cmd], capture_output=True, text=True, env=env)
         if p.returncode != 0:
             raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode}):\n{p.stderr[-2000:]}")
-        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        return peak / 1024.0 if peak > before else float("nan")  # a peak below an earlier child's is unknown
+        return int(p.stdout.split()[-1]) / 1024.0  # KiB on Linux
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grids", nargs="+", default=list(GRIDS), choices=list(GRIDS))
+    ap.add_argument("--grids", nargs="*", default=list(GRIDS), choices=list(GRIDS))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--repeat", type=int, default=10, help="calls a timing (the mean)")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--peak-ne", type=int, nargs="*", default=[], help="TC5 grids for the peak-memory rows")
+    ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")
     args = ap.parse_args(argv)
     init_warp()  # quietly
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
-    with recorded("precision_speed") as figures:
+    with recorded("precision_speed", args.results) as figures:
         print(f"clock {args.clock}, one thread, medians of {args.rounds} rounds of {args.repeat} calls")
         print(
             "| grid | nodes | RHS float64 Mpt/s | RHS float32 Mpt/s | ratio | step float64 ms | step float32 ms | ratio | device MiB float64 | float32 | ratio |"

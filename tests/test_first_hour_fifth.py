@@ -57,3 +57,45 @@ def test_plot_animate_to_a_file_name_writes_that_file(capsys):
     assert Path("p.gif").is_file()
     code, _, err = cli_main(capsys, "plot", "r.nc", "--animate", "--output", "p.gif")
     one_line(code, err, 2, "exists")
+
+
+def test_hyperviscosity_every_s_edges_name_the_scene_s_key_and_their_own_reason(capsys):
+    """Item 11: `-s hyperviscosity.every=1.5` (or `true`) was refused naming the model's
+    `hypervis_every`; `lts` was refused with leapfrog's three-level reason; `every=4` on a scene
+    without a ∇⁴ passed without a word."""
+    for value in ("1.5", "true"):
+        code, out, err = cli_main(capsys, *RUN, "-s", f"hyperviscosity.every={value}", "--output", "e.nc")
+        line = one_line(code, err, 2, "hyperviscosity.every must be an integer >= 1 or 'auto'")
+        assert "hypervis_every" not in line and not Path("e.nc").exists()
+    lts = ("run", "tc5_mountain", *TINY, "--days", "0.1", "--stepper", "lts", "-s", "hyperviscosity.every=4")
+    code, out, err = cli_main(capsys, *lts, "--output", "l.nc")
+    line = one_line(code, err, 2, "hyperviscosity.every = 4: lts applies its ∇⁴ once a coarse step")
+    assert "three-level" not in line
+    code, out, err = cli_main(capsys, *RUN, "-s", "hyperviscosity.every=4", "--output", "n.nc")
+    assert code == 0 and "hyperviscosity.every = 4 is unread: the scene has no ∇⁴ (ν = 0) and no [filter]" in out
+
+
+def test_an_interrupt_during_plot_says_so(capsys, monkeypatch):
+    """Item 13: Ctrl-C during `plot --animate` said "outside the time loop", a run's words."""
+    from swe_sphere.studies import animation
+
+    assert cli_main(capsys, *RUN, "--output", "r.nc")[0] == 0
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(animation, "animate_run", interrupted)
+    code, out, err = cli_main(capsys, "plot", "r.nc", "--animate", "--output", "r.gif")
+    line = one_line(code, err, 130, "interrupted by SIGINT in swe-sphere plot; no output was written")
+    assert "time loop" not in line and not Path("r.gif").exists()
+
+
+def test_the_layout_refusal_names_the_drop_policy_not_the_stepper():
+    """Item 13: "shared" asked of members that need a model each because of `--blow-up drop` blamed
+    "stepper ssprk3"."""
+    from swe_sphere import load_scene
+    from swe_sphere.ensemble.units import layout
+
+    scene = load_scene("tc2_steady", ne=2, np_=4, stepper="ssprk3")
+    with pytest.raises(ValueError, match=r"^layout: these members need a model each \(blow_up 'drop'\): 'in_turn'$"):
+        layout(scene, None, "shared", "cpu", own=True)

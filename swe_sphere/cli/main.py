@@ -46,19 +46,18 @@ def _import_uncollected(module: str) -> None:
         gc.freeze()
 
 
-def classify(err: BaseException) -> tuple[int, str]:
+def classify(err: BaseException, command: str | None = None) -> tuple[int, str]:
     """(exit status, one-line message) of a failure, as the command line reports it (and the
-    benchmark scripts, benchmarks/results.py)."""
+    benchmark scripts, benchmarks/results.py); ``command`` the subcommand it met (an interrupt
+    names it, but for ``run``, whose interrupt outside its loop is outside the time loop)."""
     import signal
 
     if isinstance(err, Interrupted):
         return 128 + err.signum, str(err)
     if isinstance(err, KeyboardInterrupt):  # outside the time loop (its handler stops after a step)
         signum = getattr(err, "signum", signal.SIGINT)
-        return (
-            128 + signum,
-            f"interrupted by {signal.Signals(signum).name} outside the time loop; no output was written",
-        )
+        where = "outside the time loop" if command in (None, "run") else f"in swe-sphere {command}"
+        return 128 + signum, f"interrupted by {signal.Signals(signum).name} {where}; no output was written"
     if isinstance(err, (BlowUp, StepFailure, ResourceError)):  # BlowUp: a sweep's reference run
         return EXIT_BLOWUP, str(err)
     if isinstance(err, MemoryError):
@@ -109,7 +108,7 @@ def _report(err: BaseException, args) -> int:
     return its exit status; under MPI, end the job when one rank may have failed alone."""
     from ..core import mpi
 
-    code, message = classify(err)
+    code, message = classify(err, None if args is None else args.command)
     comm = (
         mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable) else None
     )  # one run over several MPI ranks

@@ -92,7 +92,8 @@ def resolve_hyperviscosity(
     if subcycle < 1:
         raise SceneError(f"hyperviscosity.subcycle must be >= 1 (got {subcycle})")
     every = table.get("every", 1)
-    if every != "auto" and (isinstance(every, str) or every < 1):
+    whole = isinstance(every, int) or (isinstance(every, float) and every.is_integer())
+    if every != "auto" and (isinstance(every, bool) or not whole or every < 1):
         raise SceneError(f"hyperviscosity.every must be an integer >= 1 or 'auto' (got {got(every)})")
     scaling = None if scaling is None or "hyperviscosity" not in terms else float(scaling)
     hv = SceneHyperviscosity(
@@ -133,7 +134,7 @@ def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, spacing: S
     Nyquist degree under the largest of ν, ν_div, ν_s; None where k is 1 whatever Δt (an integer
     ``every``, a controlled Δt, a three-level scheme, no ∇⁴)."""
     nu = max(hv.nu, hv.nu_div, hv.nu_s)
-    if table.get("every", 1) != "auto" or controlled or not STEPPERS[stepper].sparse_hyperviscosity or nu == 0:
+    if table.get("every", 1) != "auto" or controlled or STEPPERS[stepper].dense_hyperviscosity or nu == 0:
         return None
     tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0
     return EVERY_SPAN * tau, tau
@@ -190,8 +191,8 @@ def resolve_every(
     grid and Δt (s). An integer is k as given; "auto" ``auto_every``'s k within ``every_span``'s
     span (``steps``: an output interval's and the whole run's), and 1 where k > 1 does not fit (a
     controlled Δt, a three-level scheme, no ∇⁴). Raises ``SceneError`` naming the key: an integer
-    k > 1 under a controlled Δt or with a stepper whose ∇⁴ acts on a three-level scheme's new
-    level (``Stepper.sparse_hyperviscosity``)."""
+    k > 1 under a controlled Δt or with a stepper whose ∇⁴ runs after every step, with its reason
+    (``Stepper.dense_hyperviscosity``)."""
     every = table.get("every", 1)
     if every == "auto":
         limits = every_span(table, hv, grid, spacing, stepper, controlled)
@@ -206,11 +207,9 @@ def resolve_every(
             f"hyperviscosity.every = {every} needs a fixed dt (time.control is not 'fixed'): the ∇⁴ "
             "covers every steps of one dt"
         )
-    if every > 1 and not STEPPERS[stepper].sparse_hyperviscosity:
-        raise SceneError(
-            f"hyperviscosity.every = {every}: {stepper} applies its ∇⁴ to a three-level scheme's "
-            "new level (1 only; a one-step method takes every > 1)"
-        )
+    why = STEPPERS[stepper].dense_hyperviscosity
+    if every > 1 and why:
+        raise SceneError(f"hyperviscosity.every = {every}: {stepper} {why} (1 only; a one-step method takes every > 1)")
     return every, ()
 
 

@@ -344,6 +344,8 @@ def _dissipation(s: dict, hv, hv_notes, grid, spacing, dt: float, spans: tuple, 
     steps = (clock.steps_in(every), clock.steps_in(days))  # an output interval's and the run's
     k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
     element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
+    if k > 1 and max(hv.nu, hv.nu_div, hv.nu_s) == 0 and element_filter is None:
+        every_notes += (f"hyperviscosity.every = {k} is unread: the scene has no ∇⁴ (ν = 0) and no [filter]",)
     return dataclasses.replace(hv, every=k), element_filter, hv_notes + every_notes + filter_notes
 
 

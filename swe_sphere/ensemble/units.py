@@ -43,13 +43,16 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
     they do, whatever the stepper: a blow-up policy that drops a member)."""
     if asked not in (None, "shared", "in_turn"):
         raise ArgumentError(f"layout must be None, 'shared' or 'in_turn' (got {got(asked)})")
-    own = own or not STEPPERS[scene.stepper].explicit or scene.hypervis_scaling is not None
-    if own or (isinstance(initial, Variants) and initial.own_model):
+    causes = [
+        ("blow_up 'drop'", own),
+        (f"stepper {scene.stepper}", not STEPPERS[scene.stepper].explicit),
+        ("the tensor ∇⁴", scene.hypervis_scaling is not None),
+        ("their own g or ν", isinstance(initial, Variants) and initial.own_model),
+    ]
+    why = [cause for cause, holds in causes if holds]
+    if why:
         if asked == "shared":
-            raise ArgumentError(
-                f"layout: these members need a model each (stepper {scene.stepper}, its tensor ∇⁴, their g or ν, "
-                "or blow_up 'drop'): 'in_turn'"
-            )
+            raise ArgumentError(f"layout: these members need a model each ({', '.join(why)}): 'in_turn'")
         return "in_turn"
     return asked or ("shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn")
 

@@ -88,10 +88,11 @@ class Stepper(Described):
     # coefficients as arguments, or that reads Δt each step). False where Δt is part of the history (leapfrog's
     # x(n−1), BDF2's, a multirate split's substeps): those run at a fixed Δt only.
     variable_dt = False
-    # True: a step's ∇⁴ is one ``_hyperviscosity`` over its own span (a one-step method), so it may
-    # be applied every k steps over kΔt (the scene's ``hyperviscosity.every``); False where the ∇⁴
-    # acts on a three-level scheme's x(n+1) over 2Δt (the leapfrog family, semi-implicit)
-    sparse_hyperviscosity = True
+    # None: a step's ∇⁴ is one ``_hyperviscosity`` over its own span (a one-step method), so it may
+    # be applied every k steps over kΔt (the scene's ``hyperviscosity.every``); else why it runs
+    # after every step, the end of "<stepper> ..." (the leapfrog family: on a three-level scheme's
+    # x(n+1) over 2Δt)
+    dense_hyperviscosity: str | None = None
     # an embedded pair's local error estimate of the last step, (3, N) in x's units
     # (``runge_kutta``); None for a stepper without one
     error_estimate = None

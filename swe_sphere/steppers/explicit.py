@@ -118,7 +118,7 @@ class _LeapfrogFamily(GraphCapture, Stepper):
     2 RHS evaluations)."""
 
     explicit = capturable = differentiable = True
-    sparse_hyperviscosity = False  # the ∇⁴ acts on x(n+1), over 2Δt for leapfrog
+    dense_hyperviscosity = "applies its ∇⁴ to a three-level scheme's new level, x(n+1) over 2Δt"
 
     def __init__(self, model, dt, options=None):
         super().__init__(model, dt, options)

@@ -166,7 +166,7 @@ class Lts(Mri):
     sums cost more than the evaluations it saves."""
 
     name = "lts"
-    sparse_hyperviscosity = False  # MRAB3's graphs are keyed by its own phase; the ∇⁴ once a coarse step
+    dense_hyperviscosity = "applies its ∇⁴ once a coarse step, its levels' phases keyed in its graphs"
     Options = LtsOptions
     solvers = ("fast",)
 

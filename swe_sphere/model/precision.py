@@ -86,9 +86,11 @@ class TendencyArrays(NamedTuple):
         )
 
 
-def reference_depth(h: np.ndarray, topology) -> float:
+def reference_depth(h: np.ndarray, topology=None) -> float:
     """H₀ (m) for a float32 tendency: the midpoint of the global extremes of ``h`` (this rank's
-    element-local depths; ``topology`` reduces over the ranks). Max and min are exact in any
-    order, so every rank count gets the same H₀, and the same bits."""
+    element-local depths; ``topology`` reduces over the ranks, None: ``h`` is the whole grid's).
+    Max and min are exact in any order, so every rank count gets the same H₀, and the same bits."""
     h = np.asarray(h, dtype=float)
+    if topology is None:
+        return 0.5 * (float(h.max()) + float(h.min()))
     return 0.5 * (topology.max(float(h.max())) - topology.max(float(-h.min())))

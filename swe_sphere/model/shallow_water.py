@@ -53,8 +53,9 @@ class ElementPart(NamedTuple):
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
     the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
-    element-local tendency its kernels write (in the model's precision), ``exact`` the ranges of its elements alone (a
-    gradient's transposes run over these: a gap's elements are computed, not assembled)."""
+    element-local tendency its kernels write (in the model's precision), ``exact`` the ranges of
+    its elements alone (a gradient's transposes run over these: a gap's elements are computed,
+    not assembled)."""
 
     runs: list
     nelem: int
@@ -277,8 +278,7 @@ class ShallowWater:
         fcor, hs = case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon)
         forcing = case.forcing() if "forcing" in terms else None
         if options.get("precision", "float64") != "float64" and options.get("depth") is None:
-            topology = options.get("topology") or Topology(grid, Backend.of(options.get("device", "cpu")))
-            options["depth"] = reference_depth(case.initial(grid.lat, grid.lon)[2], topology)
+            options["depth"] = reference_depth(case.initial(grid.lat, grid.lon)[2], options.get("topology"))
         return cls(grid, terms, fcor, hs, g=case.planet.g, forcing=forcing, **options)
 
     @classmethod

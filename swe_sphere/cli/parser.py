@@ -150,7 +150,7 @@ def _member_starts(p, sweep: bool) -> None:
         help=f"with --members: {whose} own value of a case parameter (case.NAME), planet.omega, planet.gravity "
         "or hyperviscosity.nu (.nu_div, .nu_s), one a member (e.g. case.hhat=60,120,180), "
         + ("its reference run too" if sweep else "each member the single run of its scene")
-        + "; repeatable",
+        + "; repeatable, each KEY once",
     )
     p.add_argument(
         "--initial",

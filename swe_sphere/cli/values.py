@@ -120,16 +120,20 @@ def exodus_output(path: Path | None) -> Path | None:
 
 def varied(items) -> dict:
     """``--vary`` KEY=V1,V2,... items → {key: [floats]} (one value a member); ValueError naming
-    an item that is not one."""
-    out = {}
+    an item that is not one, or a key given twice (the last would replace the first unseen)."""
+    out, given = {}, {}
     for item in items:
         key, _, values = item.partition("=")
+        key = key.strip()
         try:
-            out[key.strip()] = [float(v) for v in values.split(",")]
+            numbers = [float(v) for v in values.split(",")]
         except ValueError:
             raise ValueError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)") from None
-        if not key.strip() or not values:
+        if not key or not values:
             raise ValueError(f"--vary {item!r}: give KEY=V1,V2,... (numbers, one a member)")
+        if key in out:
+            raise ValueError(f"--vary {given[key]!r} and {item!r}: {key} is varied twice; give each key once")
+        out[key], given[key] = numbers, item
     return out
 
 

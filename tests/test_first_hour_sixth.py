@@ -26,3 +26,19 @@ def test_a_key_varied_twice_is_refused(capsys, command):
     code, out, err = cli_main(capsys, *command, *twice, "--output", "v.nc" if command is RUN else "s")
     one_line(code, err, 2, "--vary 'case.alpha=0,1' and 'case.alpha=0,2': case.alpha is varied twice")
     assert out == "" and list(Path().iterdir()) == []
+
+
+@pytest.mark.xdist_group("mpi")
+def test_a_serial_command_under_mpiexec_runs_on_rank_0_alone(capsys, tmp_path):
+    """Item 14: `mpiexec -n 2 swe-sphere plot` drew and wrote the same files on each rank (each
+    path printed twice); `mpiexec -n 2 swe-sphere mesh` met the other rank's file (exit 2, no
+    line: rank 1's refusal is not printed)."""
+    from test_mpi import check_mpi, mpirun
+
+    check_mpi()
+    assert cli_main(capsys, *RUN, "--output", "r.nc")[0] == 0
+    plot = mpirun(2, ["plot", "r.nc", "--output", "figs"], tmp_path)
+    assert plot.returncode == 0, plot.stderr
+    assert plot.stdout.splitlines() == ["figs/r_h_surface_day0.1.png", "figs/r_series.png"]
+    mesh = mpirun(2, ["mesh", "--ne", "2", "--output", "m.g"], tmp_path)
+    assert mesh.returncode == 0 and mesh.stdout.count("m.g: ne2 cube: 24 elements") == 1, mesh.stderr

@@ -9,6 +9,7 @@ import sys
 import time
 import traceback
 
+from ..core import mpi
 from ..core.errors import BlowUp, Interrupted, ResourceError, StepFailure
 from . import frontier, mesh, plot, remap, run, stability, sweep
 from . import list as list_
@@ -27,6 +28,9 @@ COMMANDS = {
     "run": (run.command, "simulation.simulation"),
     "mesh": (mesh.command, "grid.refine"),
 }
+# the commands one process runs: under mpiexec rank 0 alone runs them (each rank drew, wrote and
+# printed the same files; two mesh writers met each other's file)
+SERIAL = ("list", "plot", "remap", "mesh")
 
 
 def _import_uncollected(module: str) -> None:
@@ -85,6 +89,8 @@ def main(argv=None) -> int:
         args.argv, args.console = argv, console
         debug = debug or args.debug
         command, module = COMMANDS[args.command]
+        if args.command in SERIAL and mpi.launched_rank() != 0:
+            return 0
         if console:
             _import_uncollected(module)
         code = command(args)
@@ -96,8 +102,6 @@ def main(argv=None) -> int:
         if console:
             hold_signals()  # a second Ctrl-C does not break the report
         code = _report(err, args)
-    from ..core import mpi
-
     if console and mpi.launched_size() == 1:  # an MPI rank's teardown finalises MPI
         exit_process(code)
     return code
@@ -106,8 +110,6 @@ def main(argv=None) -> int:
 def _report(err: BaseException, args) -> int:
     """Print the one line of a failure (rank 0 for what every rank meets alike) and
     return its exit status; under MPI, end the job when one rank may have failed alone."""
-    from ..core import mpi
-
     code, message = classify(err, None if args is None else args.command)
     comm = (
         mpi.world() if args is not None and args.command == "run" and not isinstance(err, mpi.MPIUnavailable) else None

@@ -165,7 +165,8 @@ def test_a_run_off_a_terminal_prints_its_progress_every_n_seconds(capsys, slow_c
     assert code == 0
     lines = _progress(out)  # one at the end of each block of steps (the clock: 100 s a reading)
     assert len(lines) >= 2 and lines[-1].endswith("day 0.25 of 0.25 (100 %), step 12, " + _span(len(lines)))
-    for k, line in enumerate(lines[:-1], 1):
+    assert lines[0] == f"progress    day {1 / 48:.4g} of 0.25 (8 %), step 1, {_span(1)}"  # no pace yet
+    for k, line in enumerate(lines[1:-1], 2):
         step = int(re.search(r"step (\d+),", line)[1])
         expected = f"progress    day {step / 48:.4g} of 0.25 ({100 * step / 12:.0f} %), step {step}, {_span(k)}, about "
         assert line.startswith(expected) and line.endswith(" left"), line
@@ -194,8 +195,8 @@ def test_a_progress_line_estimates_the_time_left(monkeypatch):
         now[0] = t
         ticker.tick(step, day)
     assert lines == [  # not at 120 s (20 s after the start), nor at 150 s (10 s after the last line)
-        "day 3 of 11 (20 %), step 10, 40 s of wall time, about 2 min 40 s left",
-        "day 10 of 11 (90 %), step 99, 1 h 05 min of wall time, about 7 min 13 s left",  # 3900 s x 0.1 / 0.9,
+        "day 3 of 11 (20 %), step 10, 40 s of wall time, about 1 min 47 s left",  # 20 s x 8 / 1.5 from 120 s
+        "day 10 of 11 (90 %), step 99, 1 h 05 min of wall time, about 7 min 36 s left",  # 3880 s x 1 / 8.5
     ]
 
 

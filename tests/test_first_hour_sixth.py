@@ -42,3 +42,26 @@ def test_a_serial_command_under_mpiexec_runs_on_rank_0_alone(capsys, tmp_path):
     assert plot.stdout.splitlines() == ["figs/r_h_surface_day0.1.png", "figs/r_series.png"]
     mesh = mpirun(2, ["mesh", "--ne", "2", "--output", "m.g"], tmp_path)
     assert mesh.returncode == 0 and mesh.stdout.count("m.g: ne2 cube: 24 elements") == 1, mesh.stderr
+
+
+def test_the_time_left_is_not_paced_by_the_first_step_s_compiling(monkeypatch):
+    """Item 14: a first progress line 5 s into a 30 s run said "about 4 min left": the first step's
+    compiling counted as the pace of every step. A run from day 0 to 1 whose first step (day 0.01)
+    took 4 s, every other 0.1 s: at 5 s the 89 steps left take 8.9 s (the whole 5 s over 0.11 days
+    said 40 s)."""
+    import swe_sphere.simulation.progress as progress
+
+    now, lines = [0.0], []
+    monkeypatch.setattr(progress, "clock", lambda: now[0])
+    ticker = progress.ProgressLines(lines.append, 5)
+    ticker.start(0.0, 1.0)
+    for t, step in ((4.0, 1), (5.0, 11), (9.0, 51)):
+        now[0] = t
+        ticker.tick(step, step / 100)
+    assert lines == ["day 0.11 of 1 (11 %), step 11, 5 s of wall time, about 9 s left"]
+    slow = progress.ProgressLines(lines.append, 3)  # a first step longer than the interval: no pace yet
+    now[0] = 0.0
+    slow.start(0.0, 1.0)
+    now[0] = 13.0
+    slow.tick(1, 0.01)
+    assert lines[1:] == ["day 0.01 of 1 (1 %), step 1, 13 s of wall time"]

@@ -20,26 +20,34 @@ class ProgressLines:
     """``write(line)`` of the model day reached, the share of the run done, the wall time so far
     and an estimate of what is left, at the first step that ends ``every`` seconds (wall time,
     not steps: a line as often whatever the grid) after the run's start or the last line.
-    ``start(day, end_day)`` when the loop begins, then ``tick(step, day)`` after its steps."""
+    ``start(day, end_day)`` when the loop begins, then ``tick(step, day)`` after its steps.
+    The estimate is the pace since the first tick, not the start: the first block of steps
+    compiles the stepper's kernels (a few seconds on a CPU, a first line 5 s into a 30 s run said
+    "about 4 min left"); a line at the first tick has none."""
 
     def __init__(self, write: Callable[[str], None], every: float = PROGRESS_SECONDS):
         if not (isinstance(every, (int, float)) and not isinstance(every, bool) and every > 0):
             raise ValueError(f"a progress line's interval must be a number of seconds > 0 (got {every!r})")
         self.write, self.every = write, float(every)
-        self.day0 = self.end = self.t0 = self.last = math.nan
+        self.day0 = self.end = self.t0 = self.last = self.day1 = self.t1 = math.nan
 
     def start(self, day: float, end_day: float) -> None:
         self.day0, self.end = day, end_day
         self.t0 = self.last = clock()
+        self.day1 = self.t1 = math.nan
 
     def tick(self, step: int, day: float) -> None:
         now = clock()
+        if math.isnan(self.t1):  # the first block's end, its compiling behind it: the pace's origin
+            self.day1, self.t1 = day, now
         if now - self.last < self.every:
             return
         self.last = now
         done = (day - self.day0) / (self.end - self.day0) if self.end > self.day0 else 1.0
         spent = now - self.t0
-        left = f", about {_span(spent * (1 - done) / done)} left" if 0 < done < 1 else ""
+        left = ""
+        if 0 < done < 1 and day > self.day1:
+            left = f", about {_span((now - self.t1) * (self.end - day) / (day - self.day1))} left"
         self.write(
             f"day {day:.4g} of {self.end:g} ({100 * done:.0f} %), step {step}, {_span(spent)} of wall time{left}"
         )

@@ -19,6 +19,7 @@ fills in)."""
 
 from __future__ import annotations
 
+import builtins
 import importlib
 import importlib.util
 import json
@@ -27,6 +28,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import symtable
 import sys
 from pathlib import Path
 
@@ -100,13 +102,13 @@ def _frontier_list(match: re.Match) -> str:
 
 def programs(path: Path, inline: bool = True) -> list[list[str]]:
     """The page's examples as commands to run in order: a shell block (or inline command)
-    as one ``bash`` script, a Python block as one program after the imports of the page's
-    earlier Python blocks (the page reads as one session; its runs are not made twice). Plain
+    as one ``bash`` script, a Python block as one program as written (pasted alone it runs: its
+    own imports; the page's earlier blocks' files are there, their runs not made twice). Plain
     ``swe-sphere`` commands (``plain_words``) and Python blocks one after another (in a block, or
     blocks and inline commands in a row) run in one process (``docs_shortening.run_each``: each
     block in a namespace of its own; ``a && b`` two commands, b after a, each ending the row where
     it fails); a shell block that is more than plain commands runs between."""
-    out, imports, row = [], [], []  # row: (the program of an item alone, the item for run_each)
+    out, row = [], []  # row: (the program of an item alone, the item for run_each)
 
     def flush():  # the items in a row: one process for two or more
         if len(row) > 1:
@@ -118,9 +120,7 @@ def programs(path: Path, inline: bool = True) -> list[list[str]]:
     for lang, text in examples(path, inline):
         if lang == "python":
             text = "\n".join(python_line(line) for line in text.splitlines())
-            source = "\n".join([*imports, text])
-            row.append(([sys.executable, "-c", source], source))
-            imports += [line for line in text.splitlines() if re.match(r"(import|from) \S", line)]
+            row.append(([sys.executable, "-c", text], text))
             continue
         lines = [
             command for line in text.replace("\\\n", " ").splitlines() if (command := shell_line(line)) is not None
@@ -299,7 +299,7 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
 def test_plain_commands_and_python_blocks_in_a_row_run_in_one_process(tmp_path):
     """Plain ``swe-sphere`` lines and Python blocks in a row (in a block, blocks and the inline
     command after them, a comment line between): one process (``docs_shortening.run_each``),
-    a command's words as the shell splits them, a block after the page's earlier imports; a block
+    a command's words as the shell splits them, a Python block as written; a block
     with anything else the shell reads runs in bash between, and so does a plain command alone."""
     page = tmp_path / "page.md"
     page.write_text(
@@ -319,7 +319,7 @@ def test_plain_commands_and_python_blocks_in_a_row_run_in_one_process(tmp_path):
         "import swe_sphere\nx = 1",
     ]
     assert bash == ["bash", "-c", "set -e\nswe-sphere run tc2_steady --output o.nc\nswe-sphere plot o.nc > o.txt"]
-    assert json.loads(each_after[3]) == ["import swe_sphere\nprint(2)", ["plot", "o.nc", "--day", "2"]]
+    assert json.loads(each_after[3]) == ["print(2)", ["plot", "o.nc", "--day", "2"]]
     assert ls == ["bash", "-c", "set -e\nls > o.txt"]
     assert alone == ["bash", "-c", "set -e\nswe-sphere plot o.nc --day 3"]
 
@@ -356,6 +356,32 @@ def _is_python_name(section: str, key: str) -> bool:
         except ImportError:
             pass
     return False
+
+
+def _unbound_names(source: str) -> list[str]:
+    """The names a Python block reads at its top level or as globals of its functions and
+    comprehensions that it neither imports nor assigns, nor are builtins (``symtable``)."""
+    top = symtable.symtable(source, "<block>", "exec")
+    bound = {s.get_name() for s in top.get_symbols() if s.is_assigned() or s.is_imported()}
+    read, tables = set(), [top]
+    while tables:
+        table = tables.pop()
+        read |= {s.get_name() for s in table.get_symbols() if s.is_referenced() and (table is top or s.is_global())}
+        tables += table.get_children()
+    return sorted(read - bound - set(dir(builtins)))
+
+
+def test_each_python_block_runs_pasted_alone():
+    """docs/gradients.md's fifth block (and two of the README's) used `swe_sphere` that an
+    earlier block imported: pasted alone, a NameError (issue 117, item 14). Each block binds
+    every name it reads."""
+    unbound = [
+        f"{page.name} block {k}: {names}"
+        for page in PAGES
+        for k, (lang, text) in enumerate(examples(page, inline=False))
+        if lang == "python" and (names := _unbound_names(text))
+    ]
+    assert unbound == []
 
 
 def test_the_pages_name_only_scene_keys_that_exist():

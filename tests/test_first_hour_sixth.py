@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -65,3 +66,31 @@ def test_the_time_left_is_not_paced_by_the_first_step_s_compiling(monkeypatch):
     now[0] = 13.0
     slow.tick(1, 0.01)
     assert lines[1:] == ["day 0.01 of 1 (1 %), step 1, 13 s of wall time"]
+
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def _reached(page: Path) -> set[Path]:
+    """The files ``page``'s markdown links reach, following the pages among them under docs/."""
+    seen, todo = set(), [page.resolve()]
+    while todo:
+        here = todo.pop()
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", here.read_text()):
+            path = (here.parent / target).resolve()
+            if path not in seen and path.is_file():
+                seen.add(path)
+                if path.suffix == ".md" and DOCS in path.parents:
+                    todo.append(path)
+    return seen
+
+
+def test_the_efficiency_page_is_its_verdict_and_tables():
+    """Item 15: docs/efficiency.md had grown to 879 lines, most of them the step-cost history of
+    one issue; the page is its verdict and tables (<= 600 lines), every figure of the study still
+    reachable from it."""
+    page = DOCS / "efficiency.md"
+    assert len(page.read_text().splitlines()) <= 600
+    figures = {p.resolve() for p in (DOCS / "efficiency").glob("*.png")}
+    assert len(figures) >= 20 and figures - _reached(page) == set()
+    assert (DOCS / "efficiency" / "step_cost.md").resolve() in _reached(page)

@@ -8,7 +8,7 @@ vector, both in one process, interleaved.
   sweep a sum of dvv's scalars times such vectors, through a scratch array between the passes.
 
 The passes: one field's **weak Laplacian** −Σ ∂ᵀ(G ∇_ref f) (the ∇⁴'s element pass, the arithmetic
-of ``kernels.hyperviscosity.laplacian_element`` for one field, written here on rows; across, the
+of ``kernels.hyperviscosity_element.laplacian_element`` for one field, written here on rows; across, the
 package's ``weak_laplacian_across``, which the ∇⁴ runs at np ≥ 5 since it was measured here), and
 the **tendency** of `galewsky`'s terms (continuity, momentum advection, Coriolis, the pressure
 gradient; mass-weighted): rows the package's own ``kernels.tendencies.tendency_element``, across
@@ -38,7 +38,7 @@ wp.config.quiet = True
 
 from results import positive, recorded  # noqa: E402  (benchmarks/, the script's directory)
 
-from swe_sphere.kernels.hyperviscosity import weak_laplacian_across  # noqa: E402
+from swe_sphere.kernels.hyperviscosity_element import weak_laplacian_across  # noqa: E402
 from swe_sphere.kernels.operators import CPU_FAST, covariant, dvv_matrix, row_derivatives, times  # noqa: E402
 from swe_sphere.kernels.tendencies import finish, tendency_element  # noqa: E402
 

@@ -30,7 +30,7 @@ How each figure is counted:
   1; ``finish`` 1 (÷ metdet) + 6 (Dinvᵀ∇E) + 4 (ζ + f: −, ÷, two +) + 4 (k×v) + 2 (topography):
   TC5 12 np + 39, Galewsky 12 np + 37. ``dss`` (kernels/dss.py, weighted, 3 rows): an FMA a
   row and copy, then × rspheremp: 3(2c + 1), c the mean number of copies in a node's table row
-  (counted from the table). ``laplacian first`` (kernels/hyperviscosity.py
+  (counted from the table). ``laplacian first`` (kernels/hyperviscosity_element.py
   ``laplacian_element``): X formed twice (the Laplacian's and the pointwise part's: 3 + 3 + 3 + 1
   each) 20; four weak Laplacians of 4 sweeps each, 8 np + 7 a field (the flux's two 2×2
   products 6, the two transposed sweeps added 1): 32 np + 28; ``scale_first`` 22 (P's dot 5,

@@ -18,7 +18,7 @@ import warp as wp
 
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
-from ..kernels import hyperviscosity, operators
+from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators
 from .precision import rounded
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
@@ -63,7 +63,7 @@ class Hyperviscosity:
     in float64. The adjoint's transposes are float64's alone.
 
     ``across_elements``: W, the elements a vector of the CPU's weak Laplacians at np ≥ 5
-    (``kernels.hyperviscosity.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
+    (``kernels.hyperviscosity_element.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
     element, on rows, as at np ≤ 4), read when a model is built (a benchmark's switch); its
     metric then also held in the across layout (3 rows of N more)."""
 
@@ -146,12 +146,12 @@ class Hyperviscosity:
         return w if ok else 0
 
     def _across_metric(self, metric: wp.array2d) -> wp.array2d:
-        """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.hyperviscosity.across_layout``),
+        """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.hyperviscosity_element.across_layout``),
         made once for each fixed metric (the constant ∇⁴'s, the tensor's)."""
         key = metric.ptr
         if key not in self._across_metrics:
             m, vw = self.model, wp.types.vector(length=self.lanes, dtype=self.dtype)
-            values = hyperviscosity.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
+            values = hyperviscosity_element.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
             self._across_metrics[key] = (wp.array(values, dtype=vw, device=m.device), metric)
         return self._across_metrics[key][0]
 
@@ -177,7 +177,7 @@ class Hyperviscosity:
         W, nelem = self.lanes, m.N // np_**2
         across = [self._across_metric(metric), *(v[0] for v in self._per_part.values())] if W else []
         if not second:  # x, d and Y are not read
-            kernel = hyperviscosity.laplacian_element(False, divergent, np_, dtype=dtype)
+            kernel = hyperviscosity_element.laplacian_element(False, divergent, np_, dtype=dtype)
             head = [L, m.topology.dss_copies, Y, m.operators.as_rows(x)]
             rows = [*head, *args, m.operators.as_rows(L), m.launches.block]
             if not W:
@@ -186,7 +186,7 @@ class Hyperviscosity:
             inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across]
             launches = [
                 m.launches.record(
-                    hyperviscosity.laplacian_across(False, divergent, np_, W, dtype=dtype),
+                    hyperviscosity_element.laplacian_across(False, divergent, np_, W, dtype=dtype),
                     blocks,
                     inputs,
                     nodes_per_index=W * np_**2,
@@ -200,14 +200,14 @@ class Hyperviscosity:
         # the first DSS in the second pass, element by element: on rows where the topology has them
         tail = [*args, m.operators.as_rows(self.hv_L2)]
         if m.topology.edges is not None:
-            rows = lambda rows, copies, ghosts, np_: hyperviscosity.laplacian_element(  # noqa: E731
+            rows = lambda rows, copies, ghosts, np_: hyperviscosity_element.laplacian_element(  # noqa: E731
                 True, divergent, np_, copies, ghosts, rows=True, dtype=dtype
             )
             if not W:
                 return m.topology.by_element(L, rows, [m.operators.as_rows(Y), *tail])
             return m.topology.by_element(
                 L,
-                lambda _, copies, ghosts, np_: hyperviscosity.laplacian_across(
+                lambda _, copies, ghosts, np_: hyperviscosity_element.laplacian_across(
                     True, divergent, np_, W, copies, ghosts, dtype
                 ),
                 [m.operators.as_rows(Y), *tail, *across],
@@ -217,7 +217,7 @@ class Hyperviscosity:
             )
         return m.topology.gathering(
             L,
-            lambda rows, copies, ghosts: hyperviscosity.laplacian_element(
+            lambda rows, copies, ghosts: hyperviscosity_element.laplacian_element(
                 True, divergent, np_, copies, ghosts, dtype=dtype
             ),
             [Y, m.operators.as_rows(Y), *tail],
@@ -234,7 +234,7 @@ class Hyperviscosity:
         tensor = self.hv_tensor is not None and second != swap
         src = Y if second else self.hv_X  # what laplacian_node reads at its node
         # the first forms X, writes it in hv_X
-        flux = hyperviscosity.laplacian_flux(not second, tensor, m.operators.static_np, self.dtype)
+        flux = hyperviscosity_node.laplacian_flux(not second, tensor, m.operators.static_np, self.dtype)
         flux_args = [
             Y if second else x,
             m.operators.hs,
@@ -261,7 +261,7 @@ class Hyperviscosity:
             np_,
             L,
         ]
-        kernel = hyperviscosity.laplacian_node(second, divergent, m.operators.static_np, self.dtype)
+        kernel = hyperviscosity_node.laplacian_node(second, divergent, m.operators.static_np, self.dtype)
         return [*passes, m.launches.nodes(kernel, N, args)]
 
     def _dss_apply(self, x, coef: float, out, mode: str, prev, weights) -> list:

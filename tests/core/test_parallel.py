@@ -179,7 +179,7 @@ def test_a_launch_is_refused_arrays_on_another_device():
     launch as it is, an illegal memory access reported only at a later sync (issue 83: the
     gradient's model held its arrays on the CPU while its topology launched on CUDA). A device
     name checked without a card: the launch is refused before Warp looks the device up."""
-    from swe_sphere.kernels import blas, hyperviscosity
+    from swe_sphere.kernels import blas, hyperviscosity, hyperviscosity_node
 
     x, out = wp.zeros((1, 4), dtype=wp.float64), wp.zeros((1, 4), dtype=wp.float64)
     inputs = [wp.float64(1.0), x, wp.float64(0.0), x, out, 1]
@@ -190,6 +190,6 @@ def test_a_launch_is_refused_arrays_on_another_device():
         parallel.record(blas.axpby, 4, inputs, device=card, threads=1)
     frame = hyperviscosity.Frame()
     frame.east = wp.zeros((3, 4), dtype=wp.float64)
-    kernel = hyperviscosity.laplacian_node(False, False)
+    kernel = hyperviscosity_node.laplacian_node(False, False)
     assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], card) == ["f.east (cpu)"]
     assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], "cpu") == []

@@ -1,4 +1,4 @@
-"""The ∇⁴'s weak Laplacians with several elements a vector (``kernels.hyperviscosity.laplacian_across``,
+"""The ∇⁴'s weak Laplacians with several elements a vector (``kernels.hyperviscosity_element.laplacian_across``,
 the CPU's form at np ≥ 5) give the rows' bits (``laplacian_element``, one element a thread): the
 operator and a few applications, forward Euler and RKL1, on cubes whose element count is not a
 multiple of the lanes (the rest on rows), split over two threads, and on an icosahedral mesh;
@@ -14,7 +14,7 @@ import warp as wp
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.kernels import hyperviscosity as hv_kernels
+from swe_sphere.kernels import hyperviscosity_element as hv_kernels
 from swe_sphere.model.hyperviscosity import Hyperviscosity
 from swe_sphere.model.shallow_water import ShallowWater
 

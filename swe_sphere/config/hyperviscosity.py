@@ -7,12 +7,11 @@ problem raises ``SceneError`` with a one-line message naming the key.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
+from typing import NamedTuple
 
 from ..core.arguments import got
-from ..core.clock import Clock, common_interval
-from ..core.constants import DAY
 from ..core.errors import SceneError
-from ..model.hyperviscosity import evaluations
 from ..steppers import STEPPERS
 from .resolve import Spacing
 from .schema import SceneGrid, SceneHyperviscosity
@@ -29,9 +28,44 @@ def efold_nu(hours: float, ne: float, np_: int, radius: float) -> float:
     √(F/6) for a file of F elements; a stretched cube's own ne), so ν is the same for
     the same element count, and elements smaller than the mean are damped faster, as
     (mean spacing / their spacing)⁴; with the tensor ∇⁴ (``hyperviscosity.scaling = s``) as
-    that ratio to the power 4 − s, so s = 4 states the rule element by element."""
+    that ratio to the power 4 − s, so s = 4 states the rule element by element. inf past a
+    float's range."""
     L = 2 * ne * (np_ - 1)
-    return radius**4 / (hours * 3600.0 * (L * (L + 1)) ** 2)
+    return _fourth_power(radius) / (hours * 3600.0 * (L * (L + 1)) ** 2)
+
+
+def _fourth_power(x: float) -> float:
+    """x⁴, inf past a float's range (a float's ** raises there)."""
+    try:
+        return x**4
+    except OverflowError:
+        return math.inf
+
+
+def _coefficients(table: dict, given: list, grid: SceneGrid, spacing: Spacing, exponent: float):
+    """(nu, nu_div, nu_s (m⁴ s⁻¹), notes) of ``resolve_hyperviscosity``: the ``given`` ones
+    scaled as dx^``exponent`` and radius⁴, the others the e-folding rule's, or nu's. Raises
+    ``SceneError`` where one is past a float's range (a planet's radius of 1e308 m)."""
+    ratio, planet_factor = spacing.mean, _fourth_power(spacing.scale)
+    nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
+    notes = []
+    if "efold_hours" in table:
+        mean_ne = grid.record.mean_ne
+        rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
+        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
+        if ratio != 1.0 and math.isfinite(rule):
+            degree = round(2 * mean_ne * (grid.np - 1))
+            notes.append(f"nu = {rule:.3g} m^4/s: {table['efold_hours']:g} h e-folding at degree {degree}")
+    else:
+        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    past = [key for key, nu in nus.items() if not math.isfinite(nu)]
+    if past:
+        keys = [k for k in (*given, "efold_hours") if k in table]
+        raise SceneError(
+            f"hyperviscosity.{past[0]} on {grid.record.description(grid.np)} and a planet of radius "
+            f"{spacing.radii[0]:g} m is past a float's range (from hyperviscosity.{keys[0]} = {table[keys[0]]:g})"
+        )
+    return nus, notes
 
 
 def resolve_hyperviscosity(
@@ -57,26 +91,16 @@ def resolve_hyperviscosity(
         )
     # under the tensor, given coefficients scale as dx^s
     exponent = HYPERVIS_EXPONENT if scaling is None else scaling
-    ratio, planet_factor = spacing.mean, spacing.scale**4
+    ratio = spacing.mean
     given = [k for k in ("nu", "nu_div", "nu_s") if k in table]
-    nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
-    notes = []
-    if "efold_hours" in table:
-        mean_ne = grid.record.mean_ne
-        rule = efold_nu(table["efold_hours"], mean_ne, grid.np, spacing.radii[0])
-        nus = {key: nus.get(key, rule) for key in ("nu", "nu_div", "nu_s")}
-        if ratio != 1.0:
-            degree = round(2 * mean_ne * (grid.np - 1))
-            notes.append(f"nu = {rule:.3g} m^4/s: {table['efold_hours']:g} h e-folding at degree {degree}")
-    else:
-        nus = {key: nus.get(key, nus.get("nu", 0.0)) for key in ("nu", "nu_div", "nu_s")}
+    nus, notes = _coefficients(table, given, grid, spacing, exponent)
     if "hyperviscosity" in terms and max(nus.values()) == 0:
         raise SceneError("the hyperviscosity term needs hyperviscosity.nu, nu_div, nu_s or efold_hours > 0")
     if "hyperviscosity" not in terms:
         if given or scaling is not None:
             notes.append("hyperviscosity coefficients given, but the scene's terms have no hyperviscosity: not used")
         nus = dict.fromkeys(nus, 0.0)
-    elif (ratio != 1.0 or planet_factor != 1.0) and given and max(nus.values()) > 0:
+    elif (ratio != 1.0 or spacing.scale != 1.0) and given and max(nus.values()) > 0:
         notes.append(
             f"nu scaled as dx^{exponent:g} and radius^4: nu, nu_div, nu_s = "
             f"{nus['nu']:.3g}, {nus['nu_div']:.3g}, {nus['nu_s']:.3g} m^4/s"
@@ -114,93 +138,91 @@ def resolve_hyperviscosity(
 EVERY_SPAN = 1 / 6
 
 
-# A ∇⁴ evaluation's cost against the rest of a step (one thread, CPU clock, medians of 9
-# interleaved rounds, benchmarks/hyperviscosity_every.py, results sparse_every_*.json): 0.76 for TC5 ne8
-# np4 rk4, 1.04 for galewsky ne12 np8 kgu35, 1.08 at ne22 np6
-HV_SHARE = 0.9
-# A dt shortened for a sparser ∇⁴ only where that saves more than the cost model's own error: 2 %
-SPARSE_GAIN = 0.98
 # ν λ τ on the uniform cube by np (λ the ∇⁴'s spectral radius, ``Hyperviscosity.biharmonic_radius``;
 # τ the e-folding time of the Nyquist degree, ``efold_nu``): measured at ne4, 8 and 12, within
 # 1.7 % of one another, growing with ne: the ne12 figures and 2 % more, so that the ∇⁴'s plan over
 # kΔt (``model.hyperviscosity.evaluations``) counted before the model is built is not below the
 # model's own
 CUBE_STIFFNESS = {np_: 1.02 * v for np_, v in {3: 3.17, 4: 7.42, 5: 16.43, 6: 32.64, 7: 59.11, 8: 99.46}.items()}
+# ``auto_every``'s search for a k that divides a count of steps stops past this many candidates
+# (a count of more than 10¹² steps: an output interval far past any run's ``MAX_STEPS``)
+DIVISOR_SEARCH = 10**6
 
 
-def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, spacing: Spacing, stepper: str, controlled: bool):
-    """(span (s), τ (s)): the longest span kΔt that ``every = "auto"`` gives the ∇⁴,
-    ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the grid's
-    Nyquist degree under the largest of ν, ν_div, ν_s; None where k is 1 whatever Δt (an integer
-    ``every``, a controlled Δt, a three-level scheme, no ∇⁴)."""
+class Span(NamedTuple):
+    """``every_span``'s answer, the ∇⁴'s span as numbers for the step rule (``step_rule.scene_dt``)
+    and the schedule (``resolve_every``): ``span`` (s) the longest kΔt, ``tau`` (s) the grid
+    scale's e-folding time, ``stiffness`` ν λ (s⁻¹) where known before the model is built (the
+    uniform cube and the constant ∇⁴, ``CUBE_STIFFNESS``; else None) and the ∇⁴'s ``subcycle``."""
+
+    span: float
+    tau: float
+    stiffness: float | None
+    subcycle: int
+
+
+def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, radius: float, stepper: str, controlled: bool):
+    """The ``Span`` of ``every = "auto"`` on ``grid`` and a planet of ``radius`` (m): the longest
+    span kΔt, ``EVERY_SPAN`` of τ, the e-folding time (``efold_nu``'s rule solved for τ) of the
+    grid's Nyquist degree under the largest of ν, ν_div, ν_s; None where k is 1 whatever Δt (an
+    integer ``every``, a controlled Δt, a three-level scheme, no ∇⁴, a τ of 0 s or past a
+    float's range)."""
     nu = max(hv.nu, hv.nu_div, hv.nu_s)
     if table.get("every", 1) != "auto" or controlled or STEPPERS[stepper].dense_hyperviscosity or nu == 0:
         return None
-    tau = efold_nu(1.0, grid.record.mean_ne, grid.np, spacing.radii[0]) / nu * 3600.0
-    return EVERY_SPAN * tau, tau
+    tau = efold_nu(1.0, grid.record.mean_ne, grid.np, radius) / nu * 3600.0
+    if not 0 < tau < math.inf:  # no span a float holds (a planet of 1e308 m): k 1
+        return None
+    known = grid.mesh is None and hv.scaling is None and grid.np in CUBE_STIFFNESS
+    return Span(EVERY_SPAN * tau, tau, CUBE_STIFFNESS[grid.np] / tau if known else None, hv.subcycle)
 
 
 def auto_every(span: float, dt: float, steps: tuple) -> int:
     """The k of ``every = "auto"`` at ``dt`` (s): the largest k whose kΔt is at most ``span``
     (s), preferring the largest k ≥ half that which divides one of ``steps`` (the steps of an
     output interval and of the whole run: the ∇⁴ then done at those times)."""
-    most = max(1, math.floor(span / dt * (1 + 1e-9)))
+    ratio = span / dt * (1 + 1e-9)
+    most = max(1, math.floor(ratio) if math.isfinite(ratio) else math.floor(Fraction(span) / Fraction(dt)))
     # the largest that divides either: the output interval's alone took k = 3 where 6 of the
     # run's fit (galewsky ne16 np6, 333 steps a day), the ∇⁴ twice as often for nothing
-    return max((k for n in steps for k in range(most, (most + 1) // 2 - 1, -1) if n % k == 0), default=most)
+    found = [_largest_divisor(n, (most + 1) // 2, most) for n in steps]
+    return max((k for k in found if k is not None), default=most)
 
 
-def sparse_dt(dt: float, intervals: tuple, every: float, days: float, span: float, stiffness: float, subcycle: int):
-    """The Δt (s) no longer than ``dt`` that costs least a day with the ∇⁴ every ``auto_every``
-    steps: C/n' for n' ≥ n = C/Δt whole steps of C, the ``common_interval`` of ``intervals``
-    (days: the run and the intervals that Δt divides), minimising n'(1 + ``HV_SHARE`` e(n')/k(n')),
-    e the ∇⁴'s evaluations over kΔt (``evaluations`` at ν λ kΔt = ``stiffness`` kΔt, with
-    ``subcycle``), the fewest steps where two cost the same; ``dt`` itself where it is not C/n or
-    that saves less than ``SPARSE_GAIN``. A count of steps with few divisors takes a small k: TC5
-    ne8 np4's odd 109 a day k = 1, its 110 k = 2 (a step 0.785x, a day 0.79x); galewsky ne24 np6's
-    499, a prime, k = 6 in 2 RKL1 stages, its 508 k = 8 in 2 (0.333 to 0.25 evaluations a step,
-    a day 0.865x; docs/efficiency.md, "A Δt for a sparser ∇⁴")."""
-    common = common_interval(*intervals) * DAY
-    n = round(common / dt)
-    if n < 1 or abs(common / n - dt) > 1e-9 * dt:
-        return dt
-
-    def cost(m: int) -> float:
-        step = common / m
-        clock = Clock(step)
-        k = auto_every(span, step, (clock.steps_in(every), clock.steps_in(days)))
-        return m * (1 + HV_SHARE * evaluations(stiffness * k * step, subcycle)[0] / k)
-
-    # k(m) ≤ span·m/C and a ∇⁴ takes one evaluation at least: no more steps than this can pay
-    top = math.floor(cost(n) - HV_SHARE * common / (span * (1 + 1e-9)))
-    best = min(range(n, max(n, top) + 1), key=cost)  # the first, the fewest steps, of equal costs
-    return common / best if cost(best) <= SPARSE_GAIN * cost(n) else dt
+def _largest_divisor(n: int, low: int, high: int) -> int | None:
+    """The largest divisor of ``n`` in ``low``..``high`` (None: none, or none found within
+    ``DIVISOR_SEARCH`` candidates): the candidates down from ``high``, or the cofactors up from
+    n / ``high``, whichever are fewer."""
+    if n == 0:  # every k divides it
+        return high
+    if n < low:
+        return None
+    if n <= high:
+        return n
+    first, last = -(-n // high), n // low  # the cofactors n / k of k in low..high
+    if min(high - low, last - first) > DIVISOR_SEARCH:
+        return None
+    if high - low <= last - first:
+        return next((k for k in range(high, low - 1, -1) if n % k == 0), None)
+    return next((n // q for q in range(first, last + 1) if n % q == 0), None)
 
 
 def resolve_every(
-    table: dict,
-    hv: SceneHyperviscosity,
-    grid: SceneGrid,
-    spacing: Spacing,
-    dt: float,
-    steps: tuple,
-    stepper: str,
-    controlled: bool,
+    table: dict, span: Span | None, dt: float, steps: tuple, stepper: str, controlled: bool
 ) -> tuple[int, tuple]:
     """(k, notes): the steps between ∇⁴ applications of [hyperviscosity] ``every`` on the run's
     grid and Δt (s). An integer is k as given; "auto" ``auto_every``'s k within ``every_span``'s
-    span (``steps``: an output interval's and the whole run's), and 1 where k > 1 does not fit (a
-    controlled Δt, a three-level scheme, no ∇⁴). Raises ``SceneError`` naming the key: an integer
+    ``span`` (``steps``: an output interval's and the whole run's), and 1 where k > 1 does not
+    fit (``span`` None: a controlled Δt, a three-level scheme, no ∇⁴). Raises ``SceneError`` naming the key: an integer
     k > 1 under a controlled Δt or with a stepper whose ∇⁴ runs after every step, with its reason
     (``Stepper.dense_hyperviscosity``)."""
     every = table.get("every", 1)
     if every == "auto":
-        limits = every_span(table, hv, grid, spacing, stepper, controlled)
-        k = 1 if limits is None else auto_every(limits[0], dt, steps)
+        k = 1 if span is None else auto_every(span.span, dt, steps)
         if k == 1:
             return 1, ()
         return k, (
-            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {limits[1] / 3600:.3g} h)",
+            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {span.tau / 3600:.3g} h)",
         )
     if every > 1 and controlled:
         raise SceneError(

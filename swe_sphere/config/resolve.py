@@ -15,7 +15,7 @@ from typing import NamedTuple
 from ..cases.library import Case, make_case
 from ..cases.reference import cases_of, locate, stored_days
 from ..core.arguments import got
-from ..core.clock import Clock, common_interval
+from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
 from ..grid.gll import NP_MAX, NP_MIN, gll
@@ -28,9 +28,6 @@ from ..steppers import STEPPERS
 from ..steppers.initialization import METHODS, DigitalFilter
 from .paths import grid_record
 from .schema import SceneGrid, check_type, is_integer, is_number
-
-# the starts of load_scene's notes on how it scaled (and cut) dt: stale once a dt is given (a branch's)
-DT_NOTES = ("dt scaled", "warning: dt cut")
 
 
 def _reference(spec, case_name: str, case_obj) -> str:
@@ -401,91 +398,6 @@ def resolve_dt_np(table: dict, file_np: int, run_np: int) -> float:
         if not (is_number(factor) and factor > 0):
             raise SceneError(f"time.dt_np.{key} must be a number > 0 (got {got(factor)})")
     return factors.get(str(run_np), 1.0) / factors.get(str(file_np), 1.0)
-
-
-def resolve_dt(
-    scene_dt,
-    dt,
-    days: float,
-    every: float,
-    scene: str,
-    grid: SceneGrid,
-    spacing: Spacing,
-    controlled: bool = False,
-    streams: tuple = (),
-    restart: float | None = None,
-    np_factor: float = 1.0,
-    sparse=None,
-) -> tuple[float, str, tuple]:
-    """(dt (s), where it comes from for messages, notes): ``dt`` as given, else the time.dt of
-    scene ``scene`` (``scene_dt``) times ``spacing.smallest`` (the run's smallest node spacing
-    on ``grid`` over the scene file's) and ``np_factor`` (``resolve_dt_np``), shortened to divide the output interval ``every``, the
-    streams' (``streams``, days: the numbers > 0 of ``[[output.streams]] every_days``, checked
-    later), the restart interval ``restart`` (days, or None) and the run of ``days``
-    (``Clock.fitted``), then ``sparse(dt)`` where given (a scaled dt alone: shortened for a
-    sparser ∇⁴, ``hyperviscosity.sparse_dt``). The schedule is checked (``Clock.check``; with
-    ``controlled`` steps, ``is_controlled``, dt is the first and need not divide it).
-    Raises ``SceneError``: no time.dt, dt ≤ 0, a run or output interval of no whole steps."""
-    if dt is not None:
-        source, notes = "the dt given", ()
-    elif scene_dt is None:
-        raise SceneError("time.dt is missing")
-    elif not scene_dt > 0:
-        raise SceneError(f"time.dt must be > 0 (got {scene_dt})")
-    elif spacing.smallest == 1.0 and np_factor == 1.0:
-        dt, source, notes = scene_dt, f"time.dt of scene {scene}", ()
-    else:
-        dt, source, notes = _scaled_dt(scene_dt, days, every, scene, grid, spacing, streams, np_factor)
-        clock = Clock(dt, 0.0, days)
-        if restart is not None:  # too many restart files refused before a dt is cut to divide them
-            clock.check_times("the restart interval", restart)
-        if restart is not None and not clock.is_whole(restart):  # the run's restart files too
-            cut = clock.fitted(days, restart, *(e for e in (every, *streams) if e < days)).dt
-            notes = (*notes, f"dt cut from {dt:g} s to {cut:g} s to divide the restart interval of {restart:g} days")
-            dt = cut
-        if sparse is not None and (shorter := sparse(dt)) != dt:
-            notes = (*notes, f"dt {dt:g} s shortened to {shorter:g} s: more steps, the ∇⁴ less often (cheaper a day)")
-            dt = shorter
-    if not (is_number(dt) and math.isfinite(dt) and dt > 0):
-        raise SceneError(f"dt must be > 0 (got {got(dt)})")
-    Clock(dt, 0.0, days, source, controlled).check({"the output interval (output.every_days)": every})
-    return dt, source, notes
-
-
-def _scaled_dt(
-    scene_dt: float, days: float, every: float, scene: str, grid: SceneGrid, spacing: Spacing, streams=(), np_factor=1.0
-):
-    """``resolve_dt``'s (dt, source, notes) of a scene's dt scaled to another spacing (and np,
-    ``np_factor``): the longest that divides the run and, where shorter, the output interval and
-    the streams'."""
-    spans = (days,) if days <= every else (every, days)
-    shorter = tuple(e for e in streams if e < days)  # a stream's interval writes within the run
-    if shorter and common_interval(*spans, *shorter) != common_interval(*spans):
-        spans, every = (*spans, *shorter), min(every, *shorter)  # the message names the shortest
-    scaled = scene_dt * spacing.smallest * np_factor
-    dt = Clock(scaled, 0.0, days).fitted(*spans).dt
-    radius, file_radius = spacing.radii
-    moved = spacing.scale != 1.0  # the planet's radius; file_radius is a number then
-    where = grid.record.description(grid.np) + (f" radius={radius:g} m" if moved else "")
-    source = f"time.dt of scene {scene} scaled to {where}"
-    # what the smallest node spacing changed with: the grid, the planet's radius or both
-    changes = ["the smallest node spacing"] if spacing.smallest != spacing.scale else []
-    if moved:
-        changes.append(f"the planet's radius ({radius:g} m against the scene's {file_radius:g} m)")
-    if np_factor != 1.0:
-        changes.append(f"time.dt_np ({np_factor:g}x at np {grid.np})")
-    why = " and ".join(changes)
-    if scaled / dt <= 2:
-        return dt, source, (f"dt scaled with {why} to {dt:g} s",)
-    # one line for both: "scaled to" the cut dt read as if the grid had asked for it
-    if days <= every:
-        what = f"the run length of {days:g} days"
-    elif common_interval(*spans) == every:
-        what = f"the output interval of {every:g} days"
-    else:
-        what = f"both the output interval of {every:g} and the run length of {days:g} days"
-    cut = f"warning: dt cut {scaled / dt:.3g}x (from {scaled:g} s, scaled with {why}) to {dt:g} s to divide {what}"
-    return dt, source, (cut,)
 
 
 def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:

@@ -75,28 +75,26 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 from ..core.arguments import instance_argument, mapping_argument
 from ..core.clock import Clock
-from ..core.constants import EARTH
+from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
 from .control import cfl_notes, is_controlled, resolve_control
 from .hyperviscosity import (
-    CUBE_STIFFNESS,
     HYPERVIS_EXPONENT,
     efold_nu,
     every_span,
     resolve_every,
     resolve_filter,
     resolve_hyperviscosity,
-    sparse_dt,
 )
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
-    DT_NOTES,
+    ResolvedCase,
     check_superseded,
     resolve_case,
-    resolve_dt,
     resolve_dt_np,
     resolve_ensemble,
     resolve_grid,
@@ -113,6 +111,7 @@ from .resolve import (
 )
 from .resolved import Scene, scene_from_dict, with_days
 from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
+from .step_rule import DT_NOTES, Times, scene_dt
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
 __all__ = [
@@ -153,12 +152,12 @@ def load_scene(
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
-    Each table is resolved by a function of its own, in this order (the first refusal
-    wins): ``read_scene`` (the file, the overrides, keys and types), ``resolve_planet``,
-    ``resolve_case``, ``resolve_terms``, ``resolve_initialization`` ([dfi]),
-    ``resolve_grid``, ``resolve_spacing``, ``resolve_output_interval``,
-    ``resolve_stepper_days``, ``resolve_precision``, ``resolve_dt``, ``resolve_output_files``,
-    ``resolve_stepper_options`` and ``resolve_hyperviscosity``.
+    Resolved in stages, each handed what the ones before decided (the first refusal wins):
+    ``read_scene`` (the file, the overrides, keys and types); the tables (``resolve``'s
+    resolvers: planet, case, terms, [dfi], grid, spacing, output interval, stepper, days,
+    precision); the ∇⁴'s coefficients and span (``hyperviscosity``); Δt by the step rule
+    (``step_rule.scene_dt``); the ∇⁴'s every k and [filter] at that Δt; the output files,
+    the stepper's options and the step control.
 
     Parameters
     ----------
@@ -221,66 +220,57 @@ def load_scene(
 
 def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None) -> Scene:
     """``load_scene``'s work on the scene file ``path`` with its keywords ``given`` (ne, np_, dt,
-    days, stepper, precision; None: the file's): its tables resolved in order."""
-    ne, np_, dt, days, stepper = (given[k] for k in ("ne", "np_", "dt", "days", "stepper"))
+    days, stepper, precision; None: the file's), in stages, each handed what the ones before it
+    decided and asking none of them back: the tables (``_tables``); the ∇⁴'s coefficients and
+    span (``resolve_hyperviscosity``, ``every_span``); Δt by the step rule (``scene_dt``, also
+    for the scene file's own Δt); the ∇⁴'s schedule at that Δt (``_dissipation``); the output
+    files, the stepper's options and the step control."""
     s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
     check_superseded(overrides, given)
-    planet = resolve_planet(s.get("planet"))
-    case = resolve_case(s.get("case", {}), planet, path)
-    terms = resolve_terms(s.get("terms"), case.case, case.name)
-    initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
-    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, ne, np_, mesh, file_grid)
-    spacing = resolve_spacing(scene_grid, grid, planet.a, file_radius)
-    output, time = s.get("output", {}), s.get("time", {})
-    every, log_every = resolve_output_interval(output)
-    stepper, days = resolve_stepper_days(time, stepper, days)
-    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"])
-    controlled = is_controlled(time)
-    streams = _stream_intervals(output)
-    restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
-    np_factor = resolve_dt_np(time, scene_grid.np, grid.np)
-    hv, hv_notes = resolve_hyperviscosity(s.get("hyperviscosity", {}), terms, grid, spacing)
-    span = every_span(s.get("hyperviscosity", {}), hv, grid, spacing, stepper, controlled)
-    # a dt the grid chose (scaled) shortened where more steps take the ∇⁴ less often for less
-    sparse = _sparser(span, hv, grid, (every, days, *streams, restart))
-    dt, dt_source, dt_notes = resolve_dt(
-        time.get("dt"), dt, days, every, path.stem, grid, spacing, controlled, streams, restart, np_factor, sparse
-    )
+    t = _tables(s, path, given, mesh, file_grid, restart_every)
+    spacing = resolve_spacing(t.scene_grid, t.grid, t.planet.a, file_radius)
+    hv_table = s.get("hyperviscosity", {})
+    hv, hv_notes = resolve_hyperviscosity(hv_table, t.terms, t.grid, spacing)
+    span = every_span(hv_table, hv, t.grid, t.planet.a, t.stepper, t.controlled)
+    time, stem = s.get("time", {}), path.stem
+    np_factor = resolve_dt_np(time, t.scene_grid.np, t.grid.np)
+    rule = (stem, t.grid, spacing, t.times, np_factor, t.controlled, span)
+    dt, dt_source, dt_notes = scene_dt(time.get("dt"), given["dt"], *rule)
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
-        own_dt = _own_dt(own, scene_grid, grid, planet.a, days, every, path.stem, controlled, streams, sparse)
-    own_planet, own_days = _own_planet_days(own)
-    output_fields, streams = resolve_output_files(output, dt, days, dt_source, controlled)
-    options, stepper_notes = resolve_stepper_options(stepper, s.get(stepper, {}), overrides)
-    control = resolve_control(time, stepper, options, dt)
-    hv, element_filter, hv_notes = _dissipation(s, hv, hv_notes, grid, spacing, dt, (every, days), stepper, controlled)
-    name, description = _title(case, file_case, path.stem, s.get("description", ""), overrides)
+        own_dt = _own_dt(own, t, rule)
+    output_fields, streams = resolve_output_files(t.output, dt, t.days, dt_source, t.controlled)
+    options, stepper_notes = resolve_stepper_options(t.stepper, s.get(t.stepper, {}), overrides)
+    control = resolve_control(time, t.stepper, options, dt)
+    hv, element_filter, hv_notes = _dissipation(s, hv, hv_notes, span, dt, t)
+    name, description = _title(t.case, file_case, stem, s.get("description", ""), overrides)
+    notes = t.case.notes + t.grid_notes + dt_notes + stepper_notes + cfl_notes(control, t.stepper) + hv_notes
     return Scene(
         name=name,
         description=description,
-        case=case.name,
-        case_params=case.params,
-        terms=terms,
-        ne=int(grid.ne),
-        np=int(grid.np),
-        stepper=stepper,
+        case=t.case.name,
+        case_params=t.case.params,
+        terms=t.terms,
+        ne=int(t.grid.ne),
+        np=int(t.grid.np),
+        stepper=t.stepper,
         stepper_options=options,
         dt=float(dt),
-        days=float(days),
-        output_every_days=float(every),
+        days=float(t.days),
+        output_every_days=float(t.times.every),
         nu=hv.nu,
         hypervis_subcycle=hv.subcycle,
         nu_div=hv.nu_div,
         nu_s=hv.nu_s,
-        notes=case.notes + grid_notes + dt_notes + stepper_notes + cfl_notes(control, stepper) + hv_notes,
-        initialization=initialization,
-        reference=case.reference,
-        log_every_steps=int(log_every),
-        planet=planet.as_table(),
+        notes=notes,
+        initialization=t.initialization,
+        reference=t.case.reference,
+        log_every_steps=int(t.log_every),
+        planet=t.planet.as_table(),
         output_fields=output_fields,
         output_streams=streams,
-        mesh=grid.mesh,
-        output_cells=output.get("cells", True),
+        mesh=t.grid.mesh,
+        output_cells=t.output.get("cells", True),
         hypervis_scaling=hv.scaling,
         hypervis_every=hv.every,
         element_filter=element_filter,
@@ -288,9 +278,61 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         ensemble=resolve_ensemble(s.get("ensemble")),
         dt_source=dt_source,
         own_dt=own_dt,
-        own_planet=own_planet,
-        own_days=own_days,
-        precision=precision,
+        **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
+        precision=t.precision,
+    )
+
+
+class Tables(NamedTuple):
+    """``_tables``' answer: the scene's tables resolved before its Δt (``resolve``'s resolvers)."""
+
+    planet: Planet
+    case: ResolvedCase
+    terms: tuple
+    initialization: dict | None
+    scene_grid: SceneGrid
+    grid: SceneGrid
+    grid_notes: tuple
+    output: dict
+    log_every: int
+    stepper: str
+    days: float
+    precision: str
+    controlled: bool
+    times: Times
+
+
+def _tables(s: dict, path: Path, given: dict, mesh, file_grid, restart_every) -> Tables:
+    """The first stage of ``_resolve``: the planet, case, terms, start, grid, output interval,
+    stepper, run length and precision of the scene's checked tables ``s``, and the times its Δt
+    lands on (``Times``: a restart interval only under a fixed Δt)."""
+    planet = resolve_planet(s.get("planet"))
+    case = resolve_case(s.get("case", {}), planet, path)
+    terms = resolve_terms(s.get("terms"), case.case, case.name)
+    initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
+    scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, given["ne"], given["np_"], mesh, file_grid)
+    output, time = s.get("output", {}), s.get("time", {})
+    every, log_every = resolve_output_interval(output)
+    stepper, days = resolve_stepper_days(time, given["stepper"], given["days"])
+    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"])
+    controlled = is_controlled(time)
+    restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
+    times = Times(days, every, _stream_intervals(output), restart)
+    return Tables(
+        planet,
+        case,
+        terms,
+        initialization,
+        scene_grid,
+        grid,
+        grid_notes,
+        output,
+        log_every,
+        stepper,
+        days,
+        precision,
+        controlled,
+        times,
     )
 
 
@@ -305,45 +347,30 @@ def _stream_intervals(output: dict) -> tuple:
     )
 
 
-def _own_dt(own: dict, scene_grid, grid, radius: float, days, every, stem: str, controlled, streams, sparse):
+def _own_dt(own: dict, t: Tables, rule: tuple):
     """The dt (s) the scene file would choose itself from its own checked tables ``own``
-    (``read_scene``: its time.dt at its own planet's radius, scaled to the run's ``grid`` at
-    ``radius``, then ``sparse``'s: the run's ∇⁴'s), all else as given (``Scene.own_dt``); None
-    where none fits the output interval."""
+    (``read_scene``: its time.dt at its own planet's radius, scaled to the run's grid), by the
+    step rule ``scene_dt`` with ``rule``, the run's other inputs (its times and its ∇⁴'s span
+    among them: ``Scene.own_dt``); None where none fits them."""
+    stem, grid, _, times, _, controlled, span = rule
     try:
-        own_spacing = resolve_spacing(scene_grid, grid, radius, own.get("planet", {}).get("radius", EARTH.a))
+        own_spacing = resolve_spacing(t.scene_grid, grid, t.planet.a, own.get("planet", {}).get("radius", EARTH.a))
         own_time = own.get("time", {})
-        np_factor = resolve_dt_np(own_time, scene_grid.np, grid.np)
-        return resolve_dt(
-            own_time.get("dt"), None, days, every, stem, grid, own_spacing, controlled, streams, None, np_factor, sparse
-        )[0]
+        np_factor = resolve_dt_np(own_time, t.scene_grid.np, grid.np)
+        return scene_dt(own_time.get("dt"), None, stem, grid, own_spacing, times, np_factor, controlled, span)[0]
     except SceneError:  # none that fits the output interval
         return None
 
 
-def _sparser(span, hv, grid, intervals: tuple):
-    """The dt (s) of a scaled ``dt`` for a sparser ∇⁴ (``hyperviscosity.sparse_dt``) dividing the
-    run and ``intervals`` (days: the output interval, the run, the streams', the restart
-    interval or None; those the run holds); ``span`` ``every_span``'s. On the uniform cube and
-    the constant ∇⁴ alone, where ``CUBE_STIFFNESS`` holds; elsewhere, and without a span, dt."""
-    if span is None or grid.mesh is not None or hv.scaling is not None or grid.np not in CUBE_STIFFNESS:
-        return lambda dt: dt
-    every, days = intervals[:2]
-    within = [d for d in intervals[1:] if d is not None and d < days] + ([every] if every < days else [])
-    stiffness = CUBE_STIFFNESS[grid.np] / span[1]  # ν λ (s⁻¹)
-    return lambda dt: sparse_dt(dt, (days, *within), every, days, span[0], stiffness, hv.subcycle)
-
-
-def _dissipation(s: dict, hv, hv_notes, grid, spacing, dt: float, spans: tuple, stepper: str, controlled: bool):
+def _dissipation(s: dict, hv, hv_notes, span, dt: float, t: Tables):
     """(the resolved ``[hyperviscosity]`` ``hv`` (``resolve_hyperviscosity``'s, its ``hv_notes``)
     with its ``every``, the ``[filter]``'s element filter, their notes) of the scene's tables
-    ``s`` at ``dt`` (s), with ``spans`` = (the output interval, the run) in days
-    (``resolve_every``, ``resolve_filter``)."""
-    every, days = spans
+    ``s`` at ``dt`` (s), the ∇⁴'s ``span`` (``every_span``) and the output interval and run of
+    ``t`` (``resolve_every``, ``resolve_filter``): the last stage of ``_resolve``."""
     clock = Clock(dt)
-    steps = (clock.steps_in(every), clock.steps_in(days))  # an output interval's and the run's
-    k, every_notes = resolve_every(s.get("hyperviscosity", {}), hv, grid, spacing, dt, steps, stepper, controlled)
-    element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, controlled)
+    steps = (clock.steps_in(t.times.every), clock.steps_in(t.days))  # an output interval's and the run's
+    k, every_notes = resolve_every(s.get("hyperviscosity", {}), span, dt, steps, t.stepper, t.controlled)
+    element_filter, filter_notes = resolve_filter(s.get("filter", {}), dt, k, t.controlled)
     if k > 1 and max(hv.nu, hv.nu_div, hv.nu_s) == 0 and element_filter is None:
         every_notes += (f"hyperviscosity.every = {k} is unread: the scene has no ∇⁴ (ν = 0) and no [filter]",)
     return dataclasses.replace(hv, every=k), element_filter, hv_notes + every_notes + filter_notes

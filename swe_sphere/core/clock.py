@@ -45,8 +45,8 @@ def common_interval(*days: float) -> float:
     return float(Fraction(math.gcd(*(int(p * denominator) for p in parts)), denominator))
 
 
-def _count(n: float) -> str:
-    """A count of steps or times for a refusal: 3 digits, or "more than 1e+308" past a float's
+def count_text(n: float) -> str:
+    """A count of steps or times (or a ratio) for a message: 3 digits, or "more than 1e+308" past a float's
     range (a run of 0.1 days with an interval of 5e-324 days)."""
     return f"{n:.3g}" if math.isfinite(n) else "more than 1e+308"
 
@@ -151,7 +151,7 @@ class Clock:
         times = self.length / every + 1e-9  # ``times_in`` unrounded: inf past a float's range (5e-324 days)
         if times >= MAX_TIMES + 1:
             raise SceneError(
-                f"{what} of {every:g} days gives {_count(times)} times over the run of "
+                f"{what} of {every:g} days gives {count_text(times)} times over the run of "
                 f"{self.length:g} days (more than {MAX_TIMES:.0e}): give a longer interval"
             )
 
@@ -164,7 +164,7 @@ class Clock:
         for what, every in (intervals or {}).items():
             self.check_times(what, every)
         if self.nsteps > MAX_STEPS:
-            steps = _count(self.length * DAY / self.dt)
+            steps = count_text(self.length * DAY / self.dt)
             raise SceneError(
                 f"dt = {self.dt:g} s gives {steps} steps to day {self.length:g} (more than {MAX_STEPS:.0e})"
             )
@@ -188,10 +188,17 @@ class Clock:
 
     def fitted(self, *intervals: float, source: str | None = None) -> Clock:
         """The clock with the longest Δt no longer than this one's that divides each of
-        ``intervals`` (days; their ``common_interval``): span / ⌈span / Δt⌉. ``source`` the new
-        Δt's, for the refusals (default this one's)."""
-        span = common_interval(*intervals) * DAY
-        dt = span / max(1, math.ceil(span / self.dt - 1e-9))
+        ``intervals`` (days; their ``common_interval``): span / ⌈span / Δt⌉, in exact arithmetic
+        where span / Δt passes a float's range. ``source`` the new Δt's, for the refusals
+        (default this one's)."""
+        common = common_interval(*intervals)
+        span = common * DAY
+        steps = span / self.dt
+        if math.isfinite(steps):
+            dt = span / max(1, math.ceil(steps - 1e-9))
+        else:  # past a float's range (an interval of 1e308 days; a Δt of 1e-300 s): exact, rounded once
+            span = Fraction(repr(common)) * DAY
+            dt = float(span / max(1, math.ceil(span / Fraction(self.dt))))
         return dataclasses.replace(self, dt=dt, source=self.source if source is None else source)
 
 

@@ -16,7 +16,6 @@ from swe_sphere.config.hyperviscosity import HYPERVIS_EXPONENT, efold_nu, resolv
 from swe_sphere.config.resolve import (
     Spacing,
     resolve_case,
-    resolve_dt,
     resolve_dt_np,
     resolve_grid,
     resolve_initialization,
@@ -31,6 +30,7 @@ from swe_sphere.config.resolve import (
 )
 from swe_sphere.config.scene import load_scene
 from swe_sphere.config.schema import SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, read_scene
+from swe_sphere.config.step_rule import Times, scene_dt
 from swe_sphere.core.constants import DAY, EARTH, Planet
 from swe_sphere.core.errors import SceneError
 from swe_sphere.grid.quality import smallest_dx
@@ -248,32 +248,32 @@ def test_resolve_stepper_days_prefers_the_keywords():
         resolve_stepper_days({}, days="5")
 
 
-def test_resolve_dt_scales_and_cuts_the_scenes_dt():
+def test_the_step_rule_scales_and_cuts_the_scenes_dt():
     grid = SceneGrid(4, 4)
-    assert resolve_dt(None, 60.0, 1.0, 1.0, "s", grid, SAME) == (60.0, "the dt given", ())
-    assert resolve_dt(300.0, None, 5.0, 1.0, "s", grid, SAME) == (300.0, "time.dt of scene s", ())
+    assert scene_dt(None, 60.0, "s", grid, SAME, Times(1.0, 1.0)) == (60.0, "the dt given", ())
+    assert scene_dt(300.0, None, "s", grid, SAME, Times(5.0, 1.0)) == (300.0, "time.dt of scene s", ())
     coarse = Spacing(4.0, 4.0, 1.0, (A, A))  # ne 16 -> 4: a 4x larger spacing, a dt 4x longer
-    assert resolve_dt(300.0, None, 5.0, 1.0, "s", grid, coarse) == (
+    assert scene_dt(300.0, None, "s", grid, coarse, Times(5.0, 1.0)) == (
         1200.0,
         "time.dt of scene s scaled to ne=4 np=4",
         ("dt scaled with the smallest node spacing to 1200 s",),
     )
     # a run of 0.005 days (432 s) is one step of 432 s, not 1200 s
-    dt, _, notes = resolve_dt(300.0, None, 0.005, 1.0, "s", grid, coarse)
+    dt, _, notes = scene_dt(300.0, None, "s", grid, coarse, Times(0.005, 1.0))
     assert dt == 432.0 and notes == (
         "warning: dt cut 2.78x (from 1200 s, scaled with the smallest node spacing) to 432 s to divide the run "
         "length of 0.005 days",
     )
     small = Spacing(1.0, 0.1, 0.1, (A / 10, A))
-    assert resolve_dt(300.0, None, 5.0, 1.0, "s", SceneGrid(16, 4), small) == (
+    assert scene_dt(300.0, None, "s", SceneGrid(16, 4), small, Times(5.0, 1.0)) == (
         30.0,
         "time.dt of scene s scaled to ne=16 np=4 radius=637122 m",
         ("dt scaled with the planet's radius (637122 m against the scene's 6.37122e+06 m) to 30 s",),
     )
     with pytest.raises(SceneError, match=r"^time.dt is missing$"):
-        resolve_dt(None, None, 1.0, 1.0, "s", grid, SAME)
+        scene_dt(None, None, "s", grid, SAME, Times(1.0, 1.0))
     with pytest.raises(SceneError, match=r"^the run length of 1 days is not a whole number of steps of dt = 7 s"):
-        resolve_dt(None, 7.0, 1.0, 1.0, "s", grid, SAME)
+        scene_dt(None, 7.0, "s", grid, SAME, Times(1.0, 1.0))
 
 
 def test_time_dt_np_lengthens_a_scaled_dt_at_the_np_it_names():

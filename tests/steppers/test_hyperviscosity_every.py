@@ -9,8 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from swe_sphere.config.hyperviscosity import auto_every, sparse_dt
+from swe_sphere.config.hyperviscosity import Span, auto_every
 from swe_sphere.config.scene import load_scene
+from swe_sphere.config.step_rule import sparse_dt
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
 from swe_sphere.model.hyperviscosity import evaluations
@@ -175,11 +176,15 @@ def test_the_shortened_dt_is_the_cheapest_whole_count_and_leaves_a_small_gain():
     assert auto_every(span, DAY / 500, (500, 3000)) == 10
     soft = 1e-6  # ν λ (s⁻¹): one forward-Euler substep over 30 min (ν λ kΔt = 0.0018)
     # a day: 499 (k 6) 499·(1 + 0.9/6) = 573.9; 500 (k 10) 500·1.09 = 545
-    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 500
-    assert sparse_dt(DAY / 416, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 416  # k 8 already: nothing pays 2 %
-    assert sparse_dt(DAY / 499.5, (6.0, 1.0), 1.0, 6.0, span, soft, 1) == DAY / 499.5  # not whole steps of a day
+    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, Span(span, 6 * span, soft, 1)) == DAY / 500
+    assert (
+        sparse_dt(DAY / 416, (6.0, 1.0), 1.0, 6.0, Span(span, 6 * span, soft, 1)) == DAY / 416
+    )  # k 8 already: nothing pays 2 %
+    assert (
+        sparse_dt(DAY / 499.5, (6.0, 1.0), 1.0, 6.0, Span(span, 6 * span, soft, 1)) == DAY / 499.5
+    )  # not whole steps of a day
     # stiff, ν λ = 3e-3 s⁻¹: k 6 over 17.3 min takes 2 RKL1 stages, k 10 over 28.8 min 3
     stiff = 3e-3
     assert evaluations(stiff * 6 * DAY / 499, 1) == (2, True) and evaluations(stiff * 10 * DAY / 500, 1) == (3, True)
     # 499: 499·(1 + 0.9·2/6) = 648.7; 500: 500·(1 + 0.9·3/10) = 635; 508 (k 8, 2 stages): 622.3, the least
-    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, span, stiff, 1) == DAY / 508
+    assert sparse_dt(DAY / 499, (6.0, 1.0), 1.0, 6.0, Span(span, 6 * span, stiff, 1)) == DAY / 508

@@ -7,10 +7,10 @@ problem raises ``SceneError`` with a one-line message naming the key.
 from __future__ import annotations
 
 import math
-from fractions import Fraction
 from typing import NamedTuple
 
 from ..core.arguments import got
+from ..core.clock import MAX_STEPS
 from ..core.errors import SceneError
 from ..steppers import STEPPERS
 from .resolve import Spacing
@@ -179,10 +179,11 @@ def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, radius: fl
 
 def auto_every(span: float, dt: float, steps: tuple) -> int:
     """The k of ``every = "auto"`` at ``dt`` (s): the largest k whose kΔt is at most ``span``
-    (s), preferring the largest k ≥ half that which divides one of ``steps`` (the steps of an
-    output interval and of the whole run: the ∇⁴ then done at those times)."""
-    ratio = span / dt * (1 + 1e-9)
-    most = max(1, math.floor(ratio) if math.isfinite(ratio) else math.floor(Fraction(span) / Fraction(dt)))
+    (s) and at most ``MAX_STEPS`` + 1, preferring the largest k ≥ half that which divides one of
+    ``steps`` (the steps of an output interval and of the whole run: the ∇⁴ then done at those
+    times)."""
+    ratio = span / dt * (1 + 1e-9)  # no k past MAX_STEPS: no run has that many steps
+    most = max(1, math.floor(ratio)) if ratio < MAX_STEPS + 1 else MAX_STEPS + 1
     # the largest that divides either: the output interval's alone took k = 3 where 6 of the
     # run's fit (galewsky ne16 np6, 333 steps a day), the ∇⁴ twice as often for nothing
     found = [_largest_divisor(n, (most + 1) // 2, most) for n in steps]

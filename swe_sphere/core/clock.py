@@ -1,14 +1,15 @@
 """The run's clock: Δt, the day of step 0 and the last day, and the one whole-step rule; and
 the clock of a run replayed step by step (``StepTimes``: a gradient's, a controlled run's).
 
-A ``Clock`` is decided once, where the scene is resolved (``config.resolve.resolve_dt``), and
+A scene's ``Clock`` holds the Δt of its step rule (``config.step_rule.scene_dt``) and is
 asked by everything that counts steps: the scene's schedule checks, the output and restart
 steps (``simulation.schedules``), the Python drive's intervals and its fitted Δt
 (``Simulation.fitted_dt``: a new clock, made the run's by ``use_dt`` alone), the run file's
-times (``day``). Δt is decided in two places: here (the plan, and ``fitted``, its one rule for
-a Δt that divides given intervals: the scene's resolution, ``fitted_dt``, the sweep's
-``dt_for_day``), and by the one loop's Δt policy (``integrator.FixedDt``, the plan's Δt or a
-run's replayed, ``StepTimes``; ``integrator.ControlledDt``, a step control's accepted steps). Oceananigans' ``Clock`` (time,
+times (``day``). Δt is decided in two places: the scene's step rule, and the one loop's Δt
+policy (``integrator.FixedDt``, the plan's Δt or a run's replayed, ``StepTimes``;
+``integrator.ControlledDt``, a step control's accepted steps); ``fitted`` here is the
+arithmetic both use for a Δt that divides given intervals (the step rule, ``fitted_dt``, the
+sweep's ``dt_for_day``), deciding nothing alone. Oceananigans' ``Clock`` (time,
 iteration, last Δt) and HOMME's ``timestep_make_parameters_consistent`` are the models.
 
 The clock is the plan of a fixed-Δt run: step n is at ``start + n Δt``. An adaptive run (a
@@ -197,7 +198,7 @@ class Clock:
         if math.isfinite(steps):
             dt = span / max(1, math.ceil(steps - 1e-9))
         else:  # past a float's range (an interval of 1e308 days; a Δt of 1e-300 s): exact, rounded once
-            span = Fraction(repr(common)) * DAY
+            span = Fraction(repr(common)) * Fraction(DAY)
             dt = float(span / max(1, math.ceil(span / Fraction(self.dt))))
         return dataclasses.replace(self, dt=dt, source=self.source if source is None else source)
 

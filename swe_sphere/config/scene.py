@@ -93,6 +93,7 @@ from .hyperviscosity import (
 from .paths import list_scenes, resolve_path, scene_dir
 from .resolve import (
     ResolvedCase,
+    Spacing,
     check_superseded,
     resolve_case,
     resolve_dt_np,
@@ -227,14 +228,12 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
     files, the stepper's options and the step control."""
     s, file_radius, file_case, file_grid, own = read_scene(path, overrides)
     check_superseded(overrides, given)
-    t = _tables(s, path, given, mesh, file_grid, restart_every)
-    spacing = resolve_spacing(t.scene_grid, t.grid, t.planet.a, file_radius)
+    t = _tables(s, path, given, mesh, file_grid, file_radius, restart_every)
     hv_table = s.get("hyperviscosity", {})
-    hv, hv_notes = resolve_hyperviscosity(hv_table, t.terms, t.grid, spacing)
+    hv, hv_notes = resolve_hyperviscosity(hv_table, t.terms, t.grid, t.spacing)
     span = every_span(hv_table, hv, t.grid, t.planet.a, t.stepper, t.controlled)
     time, stem = s.get("time", {}), path.stem
-    np_factor = resolve_dt_np(time, t.scene_grid.np, t.grid.np)
-    rule = (stem, t.grid, spacing, t.times, np_factor, t.controlled, span)
+    rule = (stem, t.grid, t.spacing, t.times, t.np_factor, t.controlled, span)
     dt, dt_source, dt_notes = scene_dt(time.get("dt"), given["dt"], *rule)
     own_dt = dt
     if dt_source == "the dt given" or "time.dt" in overrides:  # the dt it would choose itself, all else as given
@@ -293,6 +292,7 @@ class Tables(NamedTuple):
     scene_grid: SceneGrid
     grid: SceneGrid
     grid_notes: tuple
+    spacing: Spacing
     output: dict
     log_every: int
     stepper: str
@@ -300,17 +300,20 @@ class Tables(NamedTuple):
     precision: str
     controlled: bool
     times: Times
+    np_factor: float
 
 
-def _tables(s: dict, path: Path, given: dict, mesh, file_grid, restart_every) -> Tables:
-    """The first stage of ``_resolve``: the planet, case, terms, start, grid, output interval,
-    stepper, run length and precision of the scene's checked tables ``s``, and the times its Δt
-    lands on (``Times``: a restart interval only under a fixed Δt)."""
+def _tables(s: dict, path: Path, given: dict, mesh, file_grid, file_radius, restart_every) -> Tables:
+    """The first stage of ``_resolve``: the planet, case, terms, start, grid and its spacing,
+    output interval, stepper, run length, precision and ``time.dt_np`` factor of the scene's
+    checked tables ``s``, and the times its Δt lands on (``Times``: a restart interval only
+    under a fixed Δt)."""
     planet = resolve_planet(s.get("planet"))
     case = resolve_case(s.get("case", {}), planet, path)
     terms = resolve_terms(s.get("terms"), case.case, case.name)
     initialization = resolve_initialization(case.method, s.get("dfi", {}), case.case, case.name)
     scene_grid, grid, grid_notes = resolve_grid(s.get("grid"), path, given["ne"], given["np_"], mesh, file_grid)
+    spacing = resolve_spacing(scene_grid, grid, planet.a, file_radius)
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, given["stepper"], given["days"])
@@ -318,6 +321,7 @@ def _tables(s: dict, path: Path, given: dict, mesh, file_grid, restart_every) ->
     controlled = is_controlled(time)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
     times = Times(days, every, _stream_intervals(output), restart)
+    np_factor = resolve_dt_np(time, scene_grid.np, grid.np)
     return Tables(
         planet,
         case,
@@ -326,6 +330,7 @@ def _tables(s: dict, path: Path, given: dict, mesh, file_grid, restart_every) ->
         scene_grid,
         grid,
         grid_notes,
+        spacing,
         output,
         log_every,
         stepper,
@@ -333,6 +338,7 @@ def _tables(s: dict, path: Path, given: dict, mesh, file_grid, restart_every) ->
         precision,
         controlled,
         times,
+        np_factor,
     )
 
 

@@ -40,8 +40,8 @@ two are equal when
 a = 6.376e6 m. The grid, planet, Δt and ν are the scene file's own, so that they are taken as
 given: the scene's ν and Δt are for its file's grid and planet, and any other way of choosing the
 grid or radius (``--mesh``, ``--ne``, ``-s grid...``, ``-s planet.radius``) rescales them
-(``config.hyperviscosity.resolve_hyperviscosity``, ``config.step_rule.scene_dt``); the script checks that no run
-scaled either and that each run's header gives HOMME's ``nu`` back (``check_as_given``). Both
+(``config.hyperviscosity.resolve_hyperviscosity``, ``config.step_rule.scene_dt``); the script
+checks that no run scaled either and that each run's header gives HOMME's ``nu`` back (``check_as_given``). Both
 codes run on HOMME's planet (``rearth`` 6.376e6 m, Williamson's Ω and g) and each scores h
 against TC2's exact (steady) solution on it with the GLL quadrature (HOMME's ``tc2_errors``,
 printed every ``statefreq`` steps: the normalized l1, l2, l∞ of the geopotential, which are

@@ -390,14 +390,19 @@ def resolve_dt_np(table: dict, file_np: int, run_np: int) -> float:
     ``factor`` times longer on grids of that np; 1 for an np it does not name) for a run at
     ``run_np`` over the scene file's own ``file_np``: the file's dt is for its own np. Raises
     ``SceneError`` naming ``time.dt_np``: a key that is not an np of ``NP_MIN``–``NP_MAX``, a
-    factor not a number > 0."""
+    factor not a number > 0, a ratio of the two past a float's range."""
     factors = table.get("dt_np", {})
     for key, factor in factors.items():
         if not (key.isdigit() and NP_MIN <= int(key) <= NP_MAX):
             raise SceneError(f"time.dt_np keys must be np values {NP_MIN}-{NP_MAX} (got {key!r})")
         if not (is_number(factor) and factor > 0):
             raise SceneError(f"time.dt_np.{key} must be a number > 0 (got {got(factor)})")
-    return factors.get(str(run_np), 1.0) / factors.get(str(file_np), 1.0)
+    factor = factors.get(str(run_np), 1.0) / factors.get(str(file_np), 1.0)
+    if not 0 < factor < math.inf:
+        raise SceneError(
+            f"time.dt_np: the factor at np {run_np} over np {file_np}'s is {factor:g}, out of a float's range"
+        )
+    return factor
 
 
 def resolve_stepper_options(stepper: str, table: dict, overrides: dict) -> tuple[dict, tuple]:

@@ -136,7 +136,8 @@ def _scaled_dt(scene_dt: float, times: Times, scene: str, grid: SceneGrid, spaci
     if not (math.isfinite(scaled) and scaled > 0):
         raise SceneError(
             f"time.dt = {scene_dt:g} s of scene {scene} scaled with {why} to {where} is {scaled:g} s, "
-            f"{'past' if scaled else 'below'} a float's range: give a time.dt (or --dt) that is not"
+            f"{'past' if scaled else 'below'} a float's range: give a {'shorter' if scaled else 'longer'} "
+            "time.dt, or a --dt"
         )
     dt = Clock(scaled, 0.0, days).fitted(*spans).dt
     source = f"time.dt of scene {scene} scaled to {where}"

@@ -87,3 +87,12 @@ def test_the_auto_schedule_of_tiny_steps_or_a_weak_hyperviscosity_ends():
     assert auto_every(1e7, 1.0, (4_999_999,)) == 10_000_000  # none within: span / Δt itself
     # a count beyond the search's reach (10⁴⁰⁰ steps: an output interval past any run) is not searched
     assert auto_every(1800.0, 1e-300, (1, 10**400)) == MAX_STEPS + 1
+
+
+def test_a_dt_np_ratio_past_a_floats_range_is_refused():
+    """tc5_mountain (np 4) with ``time.dt_np = {4 = 5e-324}`` at np 6: the factor 1 / 5e-324 is
+    inf, and its scaled dt ran into ``Clock.fitted``'s overflow."""
+    with pytest.raises(
+        SceneError, match=r"^time.dt_np: the factor at np 6 over np 4's is inf, out of a float's range$"
+    ):
+        load_scene("tc5_mountain", np_=6, overrides={"time.dt_np": {"4": 5e-324}})

@@ -37,6 +37,7 @@ BUNDLE = {
     "tc6_rossby_haurwitz_T341.nc": ("tc6_rossby_haurwitz", (14,)),
     "galewsky_T341.nc": ("galewsky", (6,)),
     "tc2_steady_alpha_pi4_T213.nc": ("tc2_steady", (5,)),
+    "tc7_era_january_T213.nc": ("tc7_era_january", (0, 1, 2, 3, 4, 5)),
 }
 
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 from pathlib import Path
 
 from tqdm import tqdm
 
-from .config.scene import resolve_scene
+from .config.scene import LOAD_KEYWORDS, flat_overrides, resolve_scene
+from .config.state_scene import is_state_file, state_scene
 from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
 from .core.errors import OutputError, SceneError
@@ -31,8 +33,11 @@ def run(
 
     Parameters
     ----------
-    scene : str, path or Scene
-        A scene file, the name of a bundled scene ("tc5_mountain") or a ``config.Scene``.
+    scene : str, path, Scene or xarray.Dataset
+        A scene file, the name of a bundled scene ("tc5_mountain") or a ``config.Scene``; or a
+        reanalysis state, a netCDF file (``*.nc``) or a Dataset of height and wind on a lat-lon
+        grid (``io.reanalysis``), run with case 7's settings (``config.state_scene``); its
+        level, time and truncation as ``case={"level": 500, "time": "month=1"}``.
     device : {"cpu", "cuda"}, optional
         Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present, else the CPU).
     output_file : str or path, optional
@@ -100,6 +105,12 @@ def run(
         if path.name in ("", "..") or path.is_dir():
             raise OutputError(f"output_file = {str(output_file)!r} is a directory: give a file name in it")
     device = pick_device(device, verbose=verbose)
+    with state_source(scene, overrides) as (scene, overrides):  # a reanalysis file or Dataset: its Scene
+        return _run(scene, overrides, device, output_file, overwrite, restart_every, progress, verbose, initial, graphs)
+
+
+def _run(scene, overrides, device, output_file, overwrite, restart_every, progress, verbose, initial, graphs):
+    """``run`` once its arguments are checked and ``scene`` is a scene (name, path or Scene)."""
     if resolve_scene(scene, overrides)[0].ensemble is not None:  # the scene's [ensemble]: its members
         if initial is not None:
             raise SceneError(
@@ -112,6 +123,25 @@ def run(
         runner = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
         options = {"log": tqdm.write if verbose else None}  # output={"log_every_steps": N}: a line every N steps
     return _run_and_load(runner, output_file, overwrite, restart_every, options)
+
+
+@contextlib.contextmanager
+def state_source(scene, overrides: dict):
+    """(scene, overrides) as ``run`` takes them, a reanalysis file's path (``*.nc``) or an
+    ``xarray.Dataset`` made into its ``Scene`` (``config.state_scene``; the Dataset written to a
+    temporary file for the run's length), with no overrides left; else as given."""
+    import xarray as xr
+
+    if not (isinstance(scene, xr.Dataset) or is_state_file(scene)):
+        yield scene, overrides
+        return
+    keywords = {name: overrides.pop(key) for key, name in LOAD_KEYWORDS.items() if key in overrides}
+    with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
+        if isinstance(scene, xr.Dataset):
+            path = Path(tmp) / "dataset.nc"
+            scene.to_netcdf(path)
+            scene = path
+        yield state_scene(scene, flat_overrides(overrides), **keywords), {}
 
 
 def _run_and_load(runner, output_file, overwrite: bool, restart_every: float | None, options: dict):

@@ -199,6 +199,27 @@ def synthesis(alm: np.ndarray, lmax: int, lat, lon, gradient: bool = False) -> n
     return out if gradient else out[0]
 
 
+def spectral_fields(h, zeta, delta, lmax: int, a: float, lat, lon) -> dict[str, np.ndarray]:
+    """A band-limited state at points: h + hs, relative vorticity and divergence given as
+    coefficients (nalm,) complex (``synthesis``' convention and order up to ``lmax``; m, s⁻¹, s⁻¹)
+    on a sphere of radius ``a`` (m), evaluated at ``lat``, ``lon`` (1-D, radians, lon in [0, 2π)):
+    ``'h_surface'`` (m), ``'u'``, ``'v'`` (m s⁻¹), ``'vorticity'`` (s⁻¹), each (n,) float64.
+    The wind u = (∂ψ/∂θ + ∂χ/∂λ / sin θ)/a, v = (∂ψ/∂λ / sin θ − ∂χ/∂θ)/a (θ colatitude) from
+    ψ_lm = −a² ζ_lm / (l(l+1)), χ_lm = −a² δ_lm / (l(l+1)), as spin-1 gradients. The one
+    evaluation of the references and of a state analysed from a file (``io.reanalysis``)."""
+    l = np.concatenate([np.arange(m, lmax + 1) for m in range(lmax + 1)])
+    ll = l * (l + 1)
+    inverse_laplacian = -(a**2) / np.where(ll > 0, ll, 1) * (ll > 0)  # ∇⁻² on the sphere of radius a
+    dpsi = synthesis(inverse_laplacian * zeta, lmax, lat, lon, gradient=True)
+    dchi = synthesis(inverse_laplacian * delta, lmax, lat, lon, gradient=True)
+    return {
+        "h_surface": synthesis(h, lmax, lat, lon),
+        "u": (dpsi[0] + dchi[1]) / a,
+        "v": (dpsi[1] - dchi[0]) / a,
+        "vorticity": synthesis(zeta, lmax, lat, lon),
+    }
+
+
 class SpectralReference(Reference):
     """A reference stored as spherical-harmonic coefficients, evaluated exactly.
 
@@ -241,25 +262,13 @@ class SpectralReference(Reference):
                 self._hs = make_case(case).hs
             elif "hs_spec_re" in ds.variables:
                 hs = coefficients("hs_spec")
-                self._hs = lambda lat, lon: self._synthesis(hs, lat, lon)
+                self._hs = lambda lat, lon: synthesis(hs, self.lmax, lat, lon)
             else:
                 self._hs = lambda lat, lon: np.zeros_like(lat)
-        ll = l * (l + 1)
-        self._inverse_laplacian = -(self._a**2) / np.where(ll > 0, ll, 1) * (ll > 0)  # ∇⁻² on the sphere of radius a
-
-    def _synthesis(self, alm, lat, lon, gradient=False) -> np.ndarray:
-        return synthesis(alm, self.lmax, lat, lon, gradient)
 
     def _fields(self, itime, lat, lon):
-        dpsi = self._synthesis(self._inverse_laplacian * self._zeta[itime], lat, lon, gradient=True)
-        dchi = self._synthesis(self._inverse_laplacian * self._delta[itime], lat, lon, gradient=True)
-        return {
-            "h_surface": self._synthesis(self._h[itime], lat, lon),
-            "hs": self._hs(lat, lon),
-            "u": (dpsi[0] + dchi[1]) / self._a,
-            "v": (dpsi[1] - dchi[0]) / self._a,
-            "vorticity": self._synthesis(self._zeta[itime], lat, lon),
-        }
+        fields = spectral_fields(self._h[itime], self._zeta[itime], self._delta[itime], self.lmax, self._a, lat, lon)
+        return {**fields, "hs": self._hs(lat, lon)}
 
 
 class GriddedReference(Reference):

@@ -156,13 +156,34 @@ def _member_starts(p, sweep: bool) -> None:
         "--initial",
         type=path,
         metavar="ENSEMBLE.nc",
-        help="with --members: member k starts from member k of an ensemble's run file at its last time",
+        help="with --members: member k starts from member k of an ensemble's run file at its last time; "
+        "without: the scene starts from a reanalysis file's state (a lat-lon netCDF file of height and wind, "
+        "swe_sphere.io.reanalysis)",
     )
 
 
 def _run(sub, parents) -> None:
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=parents)
-    r.add_argument("scene", nargs="?", help="scene file, e.g. testcases/tc5_mountain.toml, or a bundled scene name")
+    r.add_argument(
+        "scene",
+        nargs="?",
+        help="scene file, e.g. testcases/tc5_mountain.toml, a bundled scene name, or a reanalysis file (FILE.nc: "
+        "its 500 hPa-like state with case 7's settings)",
+    )
+    r.add_argument("--level", type=float, metavar="HPA", help="a reanalysis file's pressure level (case.level)")
+    r.add_argument(
+        "--time",
+        metavar="WHEN",
+        help="a reanalysis file's time: a date (2021-01-15T00), NAME=VALUE of another dimension (month=1) or a "
+        "value of the one dimension left (case.time)",
+    )
+    r.add_argument(
+        "--truncation",
+        type=int,
+        metavar="L",
+        help="a reanalysis file's triangular truncation T L, a sharp cut (case.truncation; default: what the file "
+        "and the grid resolve, tapered)",
+    )
     r.add_argument(
         "--mesh",
         type=path,

@@ -223,6 +223,8 @@ def summary(r, sim) -> None:
             f"  error wind  l2 vorticity {d['l2_vorticity']:.3e}  l2 divergence {d['l2_divergence']:.3e} "
             "(curl and divergence of v - v_exact by the model's operators, over those of v_exact)"
         )
+    if "l2_h" not in d and sim.scene.reference_file is None:
+        print("  error       none: nothing to score against (no exact solution, no reference solution for this run)")
     if "ref_l2_h_surface" in d:
         # the reference stores a few days only: quote the last output time past the start it has
         name = sim.scene.reference_file.stem.rsplit("_", 1)[-1]  # the truncation, for the spectral files ("T213")

@@ -127,6 +127,7 @@ def _refuse_a_blown_up_run(output: Path) -> None:
 
 def command(args) -> int:
     from ..config.scene import load_scene, resolve_path
+    from ..config.state_scene import is_state_file, start_overrides, state_scene
     from ..core import mpi
     from ..core.backend import pick_device
     from ..core.clock import is_interval
@@ -157,7 +158,10 @@ def command(args) -> int:
             overrides={**scene_overrides(args), **({"output.cells": False} if args.no_cells else {})},
             restart_every=args.restart_every,  # a dt the scene scales is cut to divide it too
         )
-        scene = load_scene(args.scene, **given)
+        given["overrides"] |= start_overrides(
+            args.initial if members is None else None, args.level, args.time, args.truncation
+        )
+        scene = state_scene(args.scene, **given) if is_state_file(args.scene) else load_scene(args.scene, **given)
         if members is None and scene.ensemble is not None:  # the scene's [ensemble]
             members = scene.ensemble["members"]
         _check_ensemble_options(args, members)
@@ -184,7 +188,8 @@ def command(args) -> int:
             raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")
         if scene is not None:  # a continuation's: in _run
             check_restart_interval(scene, args.restart_every)
-    initial = scene.case_params.get("path") if scene is not None else None  # a file case's initial state: an input too
+    params = scene.case_params if scene is not None else {}
+    initial = params.get("path", params.get("initial_file"))  # a file case's initial state: an input too
     if args.continue_from is not None and restart_path(output).resolve() == args.continue_from.resolve():
         raise OutputError(
             f"--output {output}: its restart file would be {restart_path(output)}, the file --continue reads "
@@ -238,7 +243,7 @@ def _check_ensemble_options(args, members: int | None) -> None:
         ("--perturbation", args.perturbation),
         ("--seed", args.seed),
         ("--perturbation-degrees", args.perturbation_degrees),
-        ("--initial", args.initial),
+        ("--initial", args.initial if members is not None else None),  # a single run's: a reanalysis file
     )
     given = [flag for flag, value in (*starts, ("--vary", args.vary)) if value is not None]
     if members is None:

@@ -93,6 +93,9 @@ def resolve_planet(table: dict | None) -> Planet:
 ANGLES = {"alpha": (2 * math.pi, "2π"), "lat2": (math.pi / 2, "π/2"), "lon2": (2 * math.pi, "2π")}
 
 
+FILE_KEYS = {"file": ("path",), "reanalysis": ("initial_file", "surface_file")}  # a case's keys naming files
+
+
 def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
     """The [case] table resolved on ``planet``: a ``case.path`` (the "file" case) relative to the
     current folder, else to ``scene_path``'s folder; a ``case.reference`` located and checked
@@ -107,10 +110,11 @@ def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
     if method not in METHODS:
         raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
     reference = params.pop("reference", None)
-    if name == "file" and isinstance(params.get("path"), str):
-        given = Path(params["path"]).expanduser()
-        beside = scene_path.parent / given
-        params["path"] = str((beside if not given.exists() and beside.exists() else given).absolute())
+    for key in FILE_KEYS.get(name, ()):  # a file the case reads: relative to here, else to the scene's folder
+        if isinstance(params.get(key), str):
+            given = Path(params[key]).expanduser()
+            beside = scene_path.parent / given
+            params[key] = str((beside if not given.exists() and beside.exists() else given).absolute())
     try:
         case = make_case(name, params, planet, SCENE_CASES)
     except ValueError as err:

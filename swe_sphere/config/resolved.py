@@ -205,7 +205,10 @@ class Scene:
         return self.clock.day(step)
 
     def make_case(self):
-        return make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
+        case = make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
+        if hasattr(case, "grid_degree"):  # a reanalysis: its default truncation is what this grid resolves
+            case = dataclasses.replace(case, grid_degree=2 * self.grid.record.mean_ne * (self.np - 1))
+        return case
 
     def make_mesh(self):
         """The grid's ``Mesh`` for ``CubedSphere(ne, np, mesh=...)``, None for the equiangular

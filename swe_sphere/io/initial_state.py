@@ -45,25 +45,10 @@ import numpy as np
 from ..cases.library import CASES, Case, make_case
 from ..core.constants import Planet
 from ..core.errors import SceneError
+from .reanalysis import REANALYSIS_CASES
 from .restart_file import read as read_restart
+from .units import DEPTH_UNITS, LAT_UNITS, LON_UNITS, WIND_UNITS, units_ok
 
-DEPTH_UNITS = {"m", "meter", "meters", "metre", "metres"}
-WIND_UNITS = {
-    "m s-1",
-    "m/s",
-    "m s^-1",
-    "m s**-1",
-    "m.s-1",
-    "ms-1",
-    "meter/second",
-    "meters/second",
-    "metre/second",
-    "metres/second",
-    "meters second-1",
-    "metres second-1",
-}
-LAT_UNITS = {"degrees_north", "degree_north", "degrees_n", "degree_n", "degrees", "degree"}
-LON_UNITS = {"degrees_east", "degree_east", "degrees_e", "degree_e", "degrees", "degree"}
 FIELD_UNITS = {"h": DEPTH_UNITS, "hs": DEPTH_UNITS, "u": WIND_UNITS, "v": WIND_UNITS}
 WHAT = {
     "h": "the fluid depth, m",
@@ -190,10 +175,6 @@ class LatLonState:
         return np.sum(vec * east, axis=0), np.sum(vec * north, axis=0), self("h", lat, lon)
 
 
-def _units_ok(units: str, allowed: set) -> bool:
-    return " ".join(str(units).strip().lower().split()) in allowed
-
-
 def _values(ds, name: str, dims: tuple, where: str, t_index) -> np.ndarray | None:
     """Variable ``name`` of ``ds`` on ``dims`` (after taking time ``t_index``) as float64,
     its units checked; None for a missing hs. Raises ``SceneError``."""
@@ -203,7 +184,7 @@ def _values(ds, name: str, dims: tuple, where: str, t_index) -> np.ndarray | Non
         raise SceneError(f"{where}: no variable {name} ({WHAT[name]}); the file needs h, u, v (and optionally hs)")
     var = ds[name]
     units = var.attrs.get("units")
-    if units is not None and not _units_ok(units, FIELD_UNITS[name]):
+    if units is not None and not units_ok(units, FIELD_UNITS[name]):
         raise SceneError(
             f"{where}: {name} has units {units!r}; {name} is {WHAT[name].split(', ')[0]} in "
             f"{'m' if FIELD_UNITS[name] is DEPTH_UNITS else 'm s-1'}"
@@ -240,7 +221,7 @@ def _axis(ds, names, allowed, where):
     for name in names:
         if name in ds.variables and ds[name].dims == (name,):
             units = ds[name].attrs.get("units")
-            if units is not None and not _units_ok(units, allowed):
+            if units is not None and not units_ok(units, allowed):
                 raise SceneError(f"{where}: {name} has units {units!r}; degrees are needed")
             return name, np.radians(np.asarray(ds[name].values, dtype=np.float64))
     return None, None
@@ -355,5 +336,5 @@ class FileState(Case):
         return self._state.initial(lat, lon)
 
 
-# every case a scene may name: the analytic ones and a file's state
-SCENE_CASES = {**CASES, "file": (FileState, {"path": str, "time": float})}
+# every case a scene may name: the analytic ones, a file's state and a reanalysis's (``reanalysis``)
+SCENE_CASES = {**CASES, "file": (FileState, {"path": str, "time": float}), **REANALYSIS_CASES}

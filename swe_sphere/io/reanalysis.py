@@ -1,0 +1,454 @@
+"""A state of the real atmosphere from a reanalysis file, by the references' own machinery.
+
+A CF netCDF file (or an ``xarray.Dataset``) on a global regular or Gaussian lat-lon grid
+(latitude either way, longitude 0–360 or −180–180) holding the geopotential (m² s⁻², divided
+by the planet's g to the model's h, so that g h is the file's geopotential) or the geopotential
+height (m: times g₀ = 9.80665, WMO's standard gravity, to the geopotential), told apart by
+``standard_name`` or ``units``, and the wind u, v (m s⁻¹) is read at one level
+(``level``, hPa) and one time (``time``: an ISO date such as "2021-01-15T00" on a date
+coordinate, "NAME=VALUE" on another dimension, e.g. "month=1", or a value of the one
+dimension left). Variables are found by ``standard_name`` (with cf_xarray where installed),
+else by the usual names (``NAMES``). The fields are analysed into spherical harmonics with
+``ducc0.sht.analysis_2d`` in the grid's own exact quadrature (Gauss–Legendre for a Gaussian
+grid, Clenshaw–Curtis for a regular grid with poles, Fejér's rules without them), the wind
+as its vorticity and divergence (ducc0's spin-1 transform: (−v, u) on the colatitude–longitude
+basis has E = −a δ_lm / √(l(l+1)), B = −a ζ_lm / √(l(l+1))), truncated, and synthesised at any
+points exactly as the spectral references are (``reference.spectral_fields``).
+
+The truncation: ``truncation`` as given (a sharp cut, as the references' T106 start), else the
+highest degree both the data's quadrature and the model's grid resolve (``grid_degree``, the
+Nyquist degree 2 ne (np − 1)), tapered by cos² over its top third (no Gibbs ringing at the
+cut). A surface height ``surface_file`` (orography in m, or surface geopotential) is analysed
+at the same truncation and taper: hs, and h = (h + hs) − hs; else hs = 0.
+
+Every problem raises ``SceneError`` (one line naming the file and variable): not netCDF, one
+of our own run files, no height or wind, units neither m nor m² s⁻², not global, NaN or fill
+values, a level or time not in the file, a 3-D field and no level, several times and no time.
+
+Sources: Williamson et al. (1992) J. Comput. Phys. 102, 211–224, case 7 (the analysed 500 mb
+height and wind as an initial state); ducc0 (Reinecke), ``ducc0.sht``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..cases.library import Case
+from ..cases.reference import SpectralReference, reference_path, spectral_fields
+from ..core.constants import EARTH
+from ..core.errors import SceneError
+from .units import DEPTH_UNITS, GEOPOTENTIAL_UNITS, LAT_UNITS, LON_UNITS, PRESSURE_UNITS, WIND_UNITS, normal
+
+G0 = 9.80665  # m s⁻²: WMO's standard gravity, geopotential = g₀ × geopotential height
+HEIGHT_UNITS = DEPTH_UNITS | {"gpm", "geopotential meters", "geopotential metres"}
+# variable names tried when no standard_name says: geopotential or its height, wind, surface
+NAMES = {
+    "height": ("z", "Z", "Z3", "zg", "hgt", "gh", "geopotential", "geopotential_height"),
+    "u": ("u", "U", "ua", "uwnd"),
+    "v": ("v", "V", "va", "vwnd"),
+    "surface": ("orog", "hs", "zs", "PHIS", "phis", "z", "hgt", "elevation"),
+}
+STANDARD = {
+    "height": ("geopotential_height", "geopotential"),
+    "u": ("eastward_wind",),
+    "v": ("northward_wind",),
+    "surface": ("surface_altitude", "surface_geopotential", "geopotential", "height_above_mean_sea_level"),
+}
+WHAT = {
+    "height": "the geopotential (m2 s-2) or geopotential height (m)",
+    "u": "the eastward wind u (m s-1)",
+    "v": "the northward wind v (m s-1)",
+    "surface": "the surface height (m) or surface geopotential (m2 s-2)",
+}
+LEVEL_NAMES = ("level", "lev", "plev", "pressure_level", "isobaricInhPa", "pressure", "pres")
+# a ring layout's (ducc0's geometry's) highest degree analysed exactly from n rings
+EXACT_DEGREE = {"GL": lambda n: n - 1, "CC": lambda n: n - 2, "F1": lambda n: n - 1, "DH": lambda n: (n - 2) // 2}
+_ATOL = 2e-6  # rad (1e-4 degrees): latitudes written in float32 still tell the layouts apart
+
+
+def _rings(n: int) -> dict[str, np.ndarray]:
+    """The colatitudes (n,) of each ring layout ducc0 analyses exactly, north to south."""
+    import ducc0
+
+    return {
+        "GL": ducc0.misc.GL_thetas(n),
+        "CC": np.linspace(0.0, math.pi, n),
+        "F1": (np.arange(n) + 0.5) * math.pi / n,
+        "DH": np.arange(n) * math.pi / n,
+    }
+
+
+def _open(source, where: str):
+    """``source`` as an ``xarray.Dataset`` (a path opened lazily), refusing a file netCDF cannot
+    read and one of our own run or restart files."""
+    import xarray as xr
+
+    if isinstance(source, xr.Dataset):
+        ds = source
+    else:
+        path = Path(source)
+        if not path.is_file():
+            raise SceneError(f"{where}: file not found")
+        try:
+            with warnings.catch_warnings():  # a _FillValue of NaN xarray calls non-conforming, among others
+                warnings.simplefilter("ignore")
+                ds = xr.open_dataset(path)
+        except Exception:  # netCDF4 / xarray raise several types, some over many lines
+            raise SceneError(f"{where}: not a readable netCDF file (truncated, or another format)") from None
+    if "ncol" in ds.dims or "swe_sphere_checkpoint" in ds.attrs:
+        raise SceneError(
+            f"{where}: a swe_sphere run or restart file, on the model's nodes, not a lat-lon state "
+            '(start from it with case name = "file", path = ...)'
+        )
+    return ds
+
+
+def _find(ds, role: str, where: str, needed: bool = True):
+    """The name of ``ds``'s variable of ``role`` (``STANDARD``'s standard names, through
+    cf_xarray where installed, else ``NAMES``), or None when not ``needed``."""
+    try:
+        import cf_xarray  # noqa: F401  (the .cf accessor)
+
+        by_standard = ds.cf.standard_names
+    except ImportError:
+        by_standard = {}
+        for name, var in ds.data_vars.items():
+            by_standard.setdefault(var.attrs.get("standard_name"), []).append(name)
+    for standard in STANDARD[role]:
+        for name in by_standard.get(standard, []):
+            if name in ds.data_vars:
+                return name
+    for name in NAMES[role]:
+        if name in ds.data_vars:
+            return name
+    if needed:
+        raise SceneError(
+            f"{where}: no {WHAT[role]} (standard_name {' or '.join(STANDARD[role])}, or a variable named "
+            f"{', '.join(NAMES[role])})"
+        )
+    return None
+
+
+def _scale(var, role: str, where: str) -> float:
+    """The factor to m² s⁻² (the geopotential of height roles) or m s⁻¹ (wind) of ``var`` by its
+    standard_name and units; ``SceneError`` for units that are neither."""
+    units, standard = var.attrs.get("units"), var.attrs.get("standard_name", "")
+    if role in ("u", "v"):
+        if units is not None and normal(units) not in WIND_UNITS:
+            raise SceneError(f"{where}: {var.name} has units {units!r}; the wind must be in m s-1")
+        return 1.0
+    if units is None:
+        if standard in ("geopotential", "surface_geopotential"):
+            return 1.0
+        if standard:
+            return G0
+        raise SceneError(f"{where}: {var.name} has no units: m (a height) or m2 s-2 (a geopotential) is needed")
+    if normal(units) in GEOPOTENTIAL_UNITS:
+        return 1.0
+    if normal(units) in HEIGHT_UNITS:
+        return G0
+    raise SceneError(f"{where}: {var.name} has units {units!r}; neither m (a height) nor m2 s-2 (a geopotential)")
+
+
+def _horizontal(ds, var, where: str) -> tuple[str, str]:
+    """The latitude and longitude dimensions of ``var`` (by their units, standard names or names)."""
+    found = {}
+    for dim in var.dims:
+        coord = ds[dim] if dim in ds.variables else None
+        attrs = {} if coord is None else coord.attrs
+        units, standard = normal(attrs.get("units", "")), attrs.get("standard_name", "")
+        if units in LAT_UNITS - {"degrees", "degree"} or standard == "latitude" or dim in ("lat", "latitude"):
+            found["lat"] = dim
+        elif units in LON_UNITS - {"degrees", "degree"} or standard == "longitude" or dim in ("lon", "longitude"):
+            found["lon"] = dim
+    if len(found) < 2:
+        raise SceneError(f"{where}: {var.name} has no latitude and longitude dimensions (dimensions {var.dims})")
+    return found["lat"], found["lon"]
+
+
+def _select(ds, var, level, time, where: str):
+    """``var`` at ``level`` (hPa) and ``time`` (module docstring), its other dimensions gone."""
+    lat, lon = _horizontal(ds, var, where)
+    rest = [d for d in var.dims if d not in (lat, lon)]
+    vertical = next((d for d in rest if d in LEVEL_NAMES or _pressure_factor(ds, d) is not None), None)
+    if level is not None:
+        var = _at_level(ds, var, vertical, float(level), where)
+        rest = [d for d in rest if d != vertical]
+    if time is not None:
+        dim, value = str(time).split("=", 1) if "=" in str(time) else (None, str(time))
+        dim = dim.strip() if dim is not None else (rest[0] if len(rest) == 1 else None)
+        if dim is None or dim not in var.dims:
+            have = ", ".join(rest) or "none"
+            raise SceneError(f"{where}: time {time!r}: no such dimension of {var.name} (its others: {have})")
+        var = _at_time(ds, var, dim, value.strip(), where)
+        rest = [d for d in rest if d != dim]
+    for dim in rest:
+        if var.sizes[dim] == 1:
+            var = var.isel({dim: 0})
+        elif dim == vertical:
+            raise SceneError(f"{where}: {var.name} is 3-D: give a level (hPa; the file has {_shown(ds, dim)})")
+        else:
+            raise SceneError(f"{where}: {var.name} has {var.sizes[dim]} {dim} values: give a time ({_shown(ds, dim)})")
+    return var.transpose(lat, lon)
+
+
+def _pressure_factor(ds, dim) -> float | None:
+    units = ds[dim].attrs.get("units") if dim in ds.variables else None
+    return None if units is None else PRESSURE_UNITS.get(normal(units))
+
+
+def _shown(ds, dim) -> str:
+    values = ds[dim].values if dim in ds.variables else np.arange(ds.sizes[dim])
+    text = [str(v)[:19] if np.issubdtype(values.dtype, np.datetime64) else f"{v:g}" for v in values[:8]]
+    return f"{dim} " + ", ".join(text) + (", ..." if values.size > 8 else "")
+
+
+def _at_level(ds, var, vertical, level: float, where: str):
+    """``var`` at pressure ``level`` hPa: on its vertical dimension, or a scalar level coordinate."""
+    if vertical is None:
+        scalar = next((c for c in ds.coords if c in LEVEL_NAMES and ds[c].ndim == 0), None)
+        if scalar is not None and abs(float(ds[scalar]) * (_pressure_factor(ds, scalar) or 1.0) - level) < 1e-6:
+            return var
+        raise SceneError(f"{where}: level {level:g} hPa: {var.name} has no vertical dimension (dimensions {var.dims})")
+    values = np.asarray(ds[vertical].values, dtype=np.float64) * (_pressure_factor(ds, vertical) or 1.0)
+    hit = np.flatnonzero(np.abs(values - level) <= 1e-6 * max(1.0, level))
+    if hit.size == 0:
+        shown = ", ".join(f"{v:g}" for v in values)
+        raise SceneError(f"{where}: level {level:g} hPa is not in the file (levels {shown} hPa)")
+    return var.isel({vertical: int(hit[0])})
+
+
+def _at_time(ds, var, dim: str, value: str, where: str):
+    """``var`` at the one ``dim`` value that ``value`` names (a date to its given precision)."""
+    coord = ds[dim].values if dim in ds.variables else np.arange(ds.sizes[dim])
+    if np.issubdtype(coord.dtype, np.datetime64):
+        try:
+            hit = np.flatnonzero(coord.astype(np.datetime64(value).dtype) == np.datetime64(value))
+        except ValueError:
+            raise SceneError(f"{where}: time {value!r} is not a date (e.g. 2021-01-15T00)") from None
+    else:
+        try:
+            hit = np.flatnonzero(np.isclose(coord.astype(np.float64), float(value), rtol=1e-9, atol=0.0))
+        except ValueError:
+            raise SceneError(f"{where}: {dim} {value!r} is not a number") from None
+    if hit.size != 1:
+        many = "matches several" if hit.size else "is not one"
+        raise SceneError(f"{where}: {dim} {value} {many} of the file's ({_shown(ds, dim)})")
+    return var.isel({dim: int(hit[0])})
+
+
+def _grid(ds, var, where: str):
+    """(values (nlat, nlon) north to south and from the first longitude east, φ₀ (rad), the
+    ring layout, its exact degree) of a selected 2-D ``var``; ``SceneError`` for a grid that is
+    not global, not uniform in longitude or of rings ducc0 cannot integrate exactly."""
+    lat_dim, lon_dim = var.dims
+    lat = np.asarray(ds[lat_dim].values, dtype=np.float64)
+    lon = np.asarray(ds[lon_dim].values, dtype=np.float64)
+    values = np.asarray(var.values, dtype=np.float64)
+    if lat.size > 1 and lat[1] < lat[0]:
+        lat, values = lat[::-1], values[::-1]
+    if lon.size > 1 and lon[1] < lon[0]:
+        lon, values = lon[::-1], values[:, ::-1]
+    step = 360.0 / max(lon.size, 1)
+    if lon.size < 4 or np.max(np.abs(np.diff(lon) - step)) > 1e-4:
+        raise SceneError(
+            f"{where}: longitudes {lon.min():g} to {lon.max():g} degrees in {lon.size} columns: not equally "
+            "spaced around the globe"
+        )
+    theta = np.radians(90.0 - lat[::-1])  # colatitudes, north to south
+    for name, rings in _rings(lat.size).items():
+        if np.allclose(theta, rings, rtol=0.0, atol=_ATOL):
+            degree = min(EXACT_DEGREE[name](lat.size), (lon.size - 1) // 2)
+            return values[::-1], math.radians(lon[0]), name, degree
+    raise SceneError(
+        f"{where}: latitudes {lat.min():g} to {lat.max():g} degrees in {lat.size} rows: not a global Gaussian or "
+        "equally spaced grid (a regional grid, or rows missing near the poles)"
+    )
+
+
+def _field(ds, role: str, level, time, where: str, needed: bool = True):
+    """(values in m² s⁻² or m s⁻¹ north to south, φ₀, ring layout, exact degree) of ``role``, or None."""
+    name = _find(ds, role, where, needed)
+    if name is None:
+        return None
+    var = _select(ds, ds[name], level, time, where)
+    scale = _scale(ds[name], role, where)
+    values, phi0, rings, degree = _grid(ds, var, where)
+    bad = np.count_nonzero(~np.isfinite(values))
+    if bad:
+        raise SceneError(f"{where}: {name} has {bad} missing values (NaN or fill values): a state must be whole")
+    return values * scale, phi0, rings, degree
+
+
+def taper(lmax: int, truncation: int, sharp: bool) -> np.ndarray:
+    """Weights (nalm,) in ducc0's order up to ``lmax``: 1 up to ``truncation`` and 0 above, with
+    (unless ``sharp``) cos² rolling off from 2/3 of ``truncation`` to 0 just past it."""
+    l = np.concatenate([np.arange(m, lmax + 1) for m in range(lmax + 1)])
+    if sharp:
+        return (l <= truncation).astype(np.float64)
+    start = 2.0 * truncation / 3.0
+    x = np.clip((l - start) / (truncation + 1 - start), 0.0, 1.0)
+    return np.cos(0.5 * math.pi * x) ** 2
+
+
+@dataclass(frozen=True)
+class Analysed:
+    """A band-limited state: h + hs, vorticity, divergence and hs as coefficients (nalm,)
+    complex in ducc0's order up to ``lmax`` (m, s⁻¹, s⁻¹, m), on a sphere of radius ``a``."""
+
+    h_surface: np.ndarray
+    vorticity: np.ndarray
+    divergence: np.ndarray
+    hs: np.ndarray | None
+    lmax: int
+    a: float
+
+    def at(self, lat, lon) -> dict[str, np.ndarray]:
+        """``reference.spectral_fields`` at ``lat``, ``lon`` (radians, any equal shape), with
+        ``'hs'`` (m) and ``'h'`` = h_surface − hs; arrays of that shape."""
+        shape = np.shape(lat)
+        lat, lon = np.ravel(lat).astype(np.float64), np.mod(np.ravel(lon), 2 * math.pi)
+        out = spectral_fields(self.h_surface, self.vorticity, self.divergence, self.lmax, self.a, lat, lon)
+        out["hs"] = (
+            np.zeros_like(lat)
+            if self.hs is None
+            else spectral_fields(self.hs, 0 * self.hs, 0 * self.hs, self.lmax, self.a, lat, lon)["h_surface"]
+        )
+        out["h"] = out["h_surface"] - out["hs"]
+        return {k: v.reshape(shape) for k, v in out.items()}
+
+
+def analyse(source, level=None, time=None, truncation=None, grid_degree=None, surface=None, planet=EARTH, where=None):
+    """The ``Analysed`` state of ``source`` (a path or an ``xarray.Dataset``; module docstring)
+    at ``level`` (hPa) and ``time``, truncated at ``truncation`` (sharp) or at the degree both
+    the data and ``grid_degree`` resolve (tapered); ``surface``: a file of the surface height;
+    heights h = geopotential / g and the wind on ``planet`` (a ``constants.Planet``: g, a).
+    ``where`` names the source in messages. Raises ``SceneError``."""
+    import ducc0
+
+    where = where or (f"initial file {str(source)!r}" if isinstance(source, (str, Path)) else "the initial dataset")
+    ds = _open(source, where)
+    height = _field(ds, "height", level, time, where)
+    u, v = (_field(ds, role, level, time, where) for role in ("u", "v"))
+    if v[1:] != u[1:] or height[1:] != u[1:]:
+        raise SceneError(f"{where}: the height and the wind are on different grids")
+    _, phi0, rings, degree = height
+    if truncation is not None and not (isinstance(truncation, (int, float)) and 1 <= truncation == int(truncation)):
+        raise SceneError(f"case.truncation must be a whole degree >= 1 (got {truncation!r})")
+    cut = degree if grid_degree is None else min(degree, int(grid_degree))
+    lmax = cut if truncation is None else int(truncation)
+    if lmax > degree:
+        raise SceneError(f"{where}: truncation T{lmax} is above the T{degree} its grid resolves exactly")
+    weights = taper(lmax, lmax, sharp=truncation is not None)
+
+    def scalar(values, phi):
+        return weights * ducc0.sht.analysis_2d(map=values[None], spin=0, lmax=lmax, geometry=rings, phi0=phi)[0]
+
+    wind = np.stack([-v[0], u[0]])  # (v_θ, v_λ): ducc0's spin-1 components
+    e, b = ducc0.sht.analysis_2d(map=wind, spin=1, lmax=lmax, geometry=rings, phi0=phi0)
+    l = np.concatenate([np.arange(m, lmax + 1) for m in range(lmax + 1)])
+    root = np.sqrt(l * (l + 1.0)) / planet.a
+    hs = None if surface is None else _surface(surface, lmax, weights, where) / planet.g
+    h_surface = scalar(height[0], phi0) / planet.g
+    return Analysed(h_surface, -weights * root * b, -weights * root * e, hs, lmax, planet.a)
+
+
+def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
+    """The surface geopotential's coefficients (m² s⁻²) from the file ``surface`` at the state's truncation."""
+    import ducc0
+
+    where = f"surface file {str(surface)!r} ({where})"
+    ds = _open(surface, where)
+    values, phi0, rings, degree = _field(ds, "surface", None, None, where)
+    if lmax > degree:
+        raise SceneError(f"{where}: its grid resolves T{degree}, below the state's T{lmax}")
+    return weights * ducc0.sht.analysis_2d(map=values[None], spin=0, lmax=lmax, geometry=rings, phi0=phi0)[0]
+
+
+@functools.lru_cache(maxsize=4)
+def _cached(path, stamp, level, time, truncation, grid_degree, surface, planet):
+    return analyse(path, level, time, truncation, grid_degree, surface, planet)
+
+
+def _stamp(path):
+    try:
+        st = Path(path).stat()
+        return (st.st_mtime_ns, st.st_size)
+    except (OSError, TypeError):
+        return None
+
+
+@dataclass(frozen=True)
+class Reanalysis(Case):
+    """A state of one's own from a reanalysis file (module docstring): ``initial_file`` at
+    ``level`` (hPa) and ``time``, truncated at ``truncation`` (default: tapered at what the
+    data and ``grid_degree``, the model grid's Nyquist degree that ``Scene.make_case`` gives,
+    resolve), over the surface of ``surface_file`` (else hs = 0). Unforced, scored against nothing."""
+
+    initial_file: str | None = None
+    level: float | None = None
+    time: str | None = None
+    truncation: float | None = None
+    surface_file: str | None = None
+    grid_degree: float | None = None
+
+    def __post_init__(self):  # read and checked once (``SceneError``), when the scene is loaded
+        if self.initial_file is None:
+            raise SceneError("case.initial_file is missing: the reanalysis file (netCDF) of the initial state")
+        key = (self.level, self.time, self.truncation, self.grid_degree, self.surface_file, self.planet)
+        state = _cached(self.initial_file, _stamp(self.initial_file), *key)
+        object.__setattr__(self, "_state", state)
+
+    @property
+    def required_terms(self):
+        return Case.required_terms | ({"topography"} if self.surface_file is not None else set())
+
+    def hs(self, lat, lon):
+        return self._state.at(lat, lon)["hs"]
+
+    def initial(self, lat, lon):
+        return _initial(self._state.at(lat, lon), self.initial_file)
+
+
+def _initial(fields: dict, where) -> tuple:
+    """(u, v, h) of evaluated ``fields``; ``SceneError`` where h <= 0 (a surface above the level)."""
+    if np.any(fields["h"] <= 0):
+        raise SceneError(
+            f"{where}: h = (h + hs) - hs <= 0 at {np.count_nonzero(fields['h'] <= 0)} nodes: the surface "
+            "rises above the level's height there (choose a higher level or no surface_file)"
+        )
+    return fields["u"], fields["v"], fields["h"]
+
+
+@functools.lru_cache(maxsize=1)
+def _january() -> SpectralReference:
+    return SpectralReference(reference_path(EraJanuary()))
+
+
+@dataclass(frozen=True)
+class EraJanuary(Case):
+    """Williamson et al. (1992) case 7 on ERA-Interim's January-mean 500 hPa state: h + hs
+    (hs = 0), vorticity and divergence truncated at T106, the bundled T213 reference's day 0
+    (``testcases/reference/README.md``), synthesised exactly at the nodes; scored against
+    that reference's days 1–5."""
+
+    reference_file = "tc7_era_january_T213.nc"
+
+    def initial(self, lat, lon):
+        return _initial(_january().at(0.0, lat, lon), self.reference_file)
+
+
+# the cases of this module a scene may name (``initial_state.SCENE_CASES``)
+REANALYSIS_CASES = {
+    "tc7_era_january": (EraJanuary, {}),
+    "reanalysis": (
+        Reanalysis,
+        {"initial_file": str, "level": float, "time": str, "truncation": float, "surface_file": str},
+    ),
+}

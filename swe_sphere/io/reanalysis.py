@@ -182,7 +182,9 @@ def _select(ds, var, level, time, where: str):
         rest = [d for d in rest if d != vertical]
     if time is not None:
         dim, value = str(time).split("=", 1) if "=" in str(time) else (None, str(time))
-        dim = dim.strip() if dim is not None else (rest[0] if len(rest) == 1 else None)
+        left = [d for d in rest if d != vertical]
+        left = [d for d in left if var.sizes[d] > 1] if len(left) > 1 else left  # the one it can mean
+        dim = dim.strip() if dim is not None else (left[0] if len(left) == 1 else None)
         if dim is None or dim not in var.dims:
             have = ", ".join(rest) or "none"
             raise SceneError(f"{where}: time {time!r}: no such dimension of {var.name} (its others: {have})")

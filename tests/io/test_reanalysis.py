@@ -1,0 +1,248 @@
+"""The reanalysis reader (``io.reanalysis``) on small synthetic CF files and the bundled
+NCEP June state, the case-7 scenes and the refusals of bad files (one line, exit 2, nothing
+written)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere.cases.reference import spectral_fields
+from swe_sphere.core.constants import EARTH
+from swe_sphere.core.errors import SceneError
+from swe_sphere.io.reanalysis import G0, analyse, taper
+
+from helpers import TINY, cli_main, one_line
+
+L = 12  # the synthetic state's degree
+DATA = Path(__file__).resolve().parents[2] / "testcases" / "data"
+
+
+def _state(seed=3):
+    """Coefficients (ducc0's order, L) of h + hs (m), vorticity and divergence (s⁻¹): a
+    5500 m mean and 100 m, 1e-5 s⁻¹, 1e-6 s⁻¹ of random harmonics (real for m = 0)."""
+    rng = np.random.default_rng(seed)
+    n = (L + 1) * (L + 2) // 2
+
+    def rand(scale):
+        c = scale * (rng.normal(size=n) + 1j * rng.normal(size=n))
+        c[: L + 1] = c[: L + 1].real
+        c[0] = 0.0
+        return c
+
+    h = rand(100.0)
+    h[0] = 5500.0 * math.sqrt(4 * math.pi)
+    return h, rand(1e-5), rand(1e-6)
+
+
+def _grid(kind: str, n: int):
+    """Latitudes (degrees, north to south) of a Gaussian, a regular pole-to-pole and a
+    half-offset regular grid of n rows."""
+    if kind == "gaussian":
+        return np.degrees(np.arcsin(np.polynomial.legendre.leggauss(n)[0]))[::-1]
+    if kind == "poles":
+        return np.linspace(90.0, -90.0, n)
+    return 90.0 - (np.arange(n) + 0.5) * 180.0 / n
+
+
+def _dataset(kind="gaussian", nlat=24, nlon=48, geopotential=True, lon0=0.0, ascending=False, **extra):
+    """A CF dataset of the synthetic state (``_state``) on a grid of ``kind``: z (m² s⁻², on
+    Williamson's g) or Z3 (m, on g₀), u, v (m s⁻¹), with a time and a level dimension of 1."""
+    lat = _grid(kind, nlat)
+    lat = lat[::-1] if ascending else lat
+    lon = lon0 + 360.0 * np.arange(nlon) / nlon
+    la, lo = np.meshgrid(np.radians(lat), np.radians(lon), indexing="ij")
+    f = spectral_fields(*_state(), L, EARTH.a, la.ravel(), np.mod(lo.ravel(), 2 * math.pi))
+    h, u, v = (f[k].reshape(la.shape)[None, None] for k in ("h_surface", "u", "v"))
+    dims = ("time", "level", "lat", "lon")
+    height = (
+        {"z": (dims, h * EARTH.g, {"units": "m**2 s**-2", "standard_name": "geopotential"})}
+        if geopotential
+        else {"Z3": (dims, h * EARTH.g / G0, {"units": "meters"})}
+    )
+    ds = xr.Dataset(
+        {
+            **height,
+            "u": (dims, u, {"units": "m s-1", "standard_name": "eastward_wind"}),
+            "v": (dims, v, {"units": "m/s"}),
+        },
+        coords={
+            "time": ("time", np.array(["2021-01-15T00"], dtype="datetime64[ns]")),
+            "level": ("level", [500.0], {"units": "hPa"}),
+            "lat": ("lat", lat, {"units": "degrees_north"}),
+            "lon": ("lon", lon, {"units": "degrees_east"}),
+        },
+    )
+    return ds.assign(**extra)
+
+
+def _truth(lat, lon):
+    return spectral_fields(*_state(), L, EARTH.a, lat, np.mod(lon, 2 * math.pi))
+
+
+POINTS = (np.radians(np.array([-89.0, -40.0, 0.3, 33.0, 71.0, 90.0])), np.radians([5.0, 300.0, 181.0, 90.0, 0.0, 10.0]))
+
+
+@pytest.mark.parametrize(
+    "form",
+    [
+        dict(kind="gaussian"),
+        dict(kind="poles", nlat=27, lon0=-180.0),  # ERA's layout: 90 → −90, −180 → 180
+        dict(kind="offset", nlat=26, ascending=True, geopotential=False),  # CMIP's zg, south to north
+    ],
+)
+def test_a_band_limited_state_comes_back_exactly_from_each_grid(form, tmp_path):
+    """A degree-12 state sampled on a Gaussian, a pole-to-pole (Clenshaw–Curtis) and a
+    half-offset (Fejér) grid, as geopotential or geopotential height, latitude either way,
+    longitude from 0 or −180, analysed at T12 (sharp): h + hs, u, v and the vorticity at
+    points (poles among them) as the coefficients give them, to 1e-9 relative."""
+    path = tmp_path / "state.nc"
+    _dataset(**form).to_netcdf(path)
+    got = analyse(path, level=500, time="2021-01-15T00", truncation=L).at(*POINTS)
+    want = _truth(*POINTS)
+    for key, scale in (("h_surface", 5500.0), ("u", 10.0), ("v", 10.0), ("vorticity", 1e-5)):
+        assert np.max(np.abs(got[key] - want[key])) < 1e-9 * scale, (key, got[key] - want[key])
+    assert np.all(got["hs"] == 0.0) and np.array_equal(got["h"], got["h_surface"])
+
+
+def test_the_default_truncation_is_what_data_and_grid_resolve_tapered():
+    """A 24 × 48 Gaussian grid resolves T23; a model grid of Nyquist degree 9 cuts it at T9,
+    tapered (cos² from degree 6 to 0 at degree 10); a truncation given is a sharp cut."""
+    ds = _dataset()
+    assert analyse(ds, truncation=None).lmax == 23
+    state = analyse(ds, grid_degree=9)
+    assert state.lmax == 9
+    w = taper(9, 9, sharp=False)[:10]  # m = 0: degrees 0..9
+    assert np.all(w[:7] == 1.0) and np.all(np.diff(w[6:]) < 0) and w[9] == pytest.approx(math.cos(0.375 * math.pi) ** 2)
+    assert np.array_equal(taper(9, 9, sharp=True), np.ones(55))
+    assert state.h_surface[0] == pytest.approx(5500.0 * math.sqrt(4 * math.pi), rel=1e-12)
+
+
+def test_a_surface_file_gives_hs_and_the_depth_over_it(tmp_path):
+    """hs from a surface-geopotential file (m² s⁻², over g) at the state's truncation; h = (h + hs) − hs."""
+    lat = _grid("gaussian", 24)
+    la = np.radians(lat)[:, None] * np.ones(48)
+    surface = xr.Dataset(
+        {"orog": (("lat", "lon"), 1000.0 * np.cos(la) ** 2 * EARTH.g, {"units": "m2 s-2"})},
+        coords={"lat": ("lat", lat, {"units": "degrees_north"}), "lon": ("lon", 7.5 * np.arange(48))},
+    )
+    surface.to_netcdf(tmp_path / "orog.nc")
+    got = analyse(_dataset(), truncation=L, surface=tmp_path / "orog.nc").at(*POINTS)
+    assert np.max(np.abs(got["hs"] - 1000.0 * np.cos(POINTS[0]) ** 2)) < 1e-8
+    assert np.array_equal(got["h"], got["h_surface"] - got["hs"])
+
+
+def test_the_bundled_ncep_june_state():
+    """NCEP/NCAR's June 500 hPa climatology (T42 Gaussian, Z3 in m): read on its Gaussian rings
+    (exact to T63), its area-mean height 5681.6 m (l = 0) and jets of 20-40 m s⁻¹, the wind's divergence
+    a few per cent of its vorticity."""
+    path = DATA / "ncep_june_climo_500hPa.nc"
+    state = analyse(path, level=500)
+    assert state.lmax == 63
+    with xr.open_dataset(path) as ds:  # the area mean by Gauss' quadrature on the file's own rows
+        mean = float(np.polynomial.legendre.leggauss(64)[1] @ ds.Z3.mean("lon").values) / 2
+    assert 5681 < mean < 5682
+    assert state.h_surface[0].real / math.sqrt(4 * math.pi) * EARTH.g / G0 == pytest.approx(mean, rel=1e-9)
+    lat, lon = np.meshgrid(np.radians(np.linspace(-89, 89, 90)), np.radians(np.arange(0, 360, 4.0)), indexing="ij")
+    f = state.at(lat, lon)
+    assert 20.0 < f["u"].max() < 40.0 and 4800.0 < f["h"].min() < f["h"].max() < 6000.0
+    assert np.linalg.norm(state.divergence) < 0.1 * np.linalg.norm(state.vorticity)
+
+
+def _bad(tmp_path):
+    """Bad files by name: (the file's dataset, or text for a non-netCDF file; the words of its line)."""
+    good = _dataset()
+    nan = good.z.values.copy()
+    nan[0, 0, 3, 4] = np.nan
+    regional = good.isel(lat=slice(4, 20))
+    return {
+        "no_wind.nc": (good.drop_vars(["u", "v"]), "no the eastward wind u"),
+        "nan.nc": (good.assign(z=(good.z.dims, nan, good.z.attrs)), "z has 1 missing values"),
+        "units.nc": (good.assign(z=good.z.assign_attrs(units="kg")), "neither m"),
+        "wind_units.nc": (good.assign(u=good.u.assign_attrs(units="knots")), "the wind must be in m s-1"),
+        "regional.nc": (regional, "not a global Gaussian or equally spaced grid"),
+        "lon.nc": (good.isel(lon=slice(0, 40)), "not equally spaced around the globe"),
+        "two_levels.nc": (xr.concat([good, good.assign_coords(level=[850.0])], "level"), "is 3-D: give a level"),
+        "two_times.nc": (
+            xr.concat([good, good.assign_coords(time=np.array(["2021-01-16"], dtype="datetime64[ns]"))], "time"),
+            "give a time",
+        ),
+        "run_file.nc": (xr.Dataset({"h": (("time", "ncol"), np.ones((1, 5)))}), "a swe_sphere run or restart file"),
+        "junk.nc": ("not netCDF at all", "not a readable netCDF file"),
+    }
+
+
+def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_path, monkeypatch):
+    """Each bad file (and a level or time the file lacks, a truncated file) gets one line
+    naming the file, exit status 2, and no run file."""
+    monkeypatch.chdir(tmp_path)
+    cases = _bad(tmp_path)
+    for name, (content, words) in cases.items():
+        if isinstance(content, str):
+            (tmp_path / name).write_text(content)
+        else:
+            content.to_netcdf(tmp_path / name)
+    good = tmp_path / "good.nc"
+    _dataset().to_netcdf(good)
+    (tmp_path / "cut.nc").write_bytes(good.read_bytes()[:2000])
+    cases["cut.nc"] = (None, "not a readable netCDF file")
+    extra = {"good.nc": (["--level", "300"], "level 300 hPa is not in the file (levels 500 hPa)")}
+    extra["good.nc "] = (["--time", "2021-02-01"], "time 2021-02-01 is not one of the file's")
+    before = set(tmp_path.iterdir())
+    for name, (_, words) in cases.items():
+        code, _, err = cli_main(capsys, "run", name, *TINY, "--days", "0.1")
+        one_line(code, err, 2, name, words)
+    for name, (flags, words) in extra.items():
+        code, _, err = cli_main(capsys, "run", name.strip(), *TINY, "--days", "0.1", *flags)
+        one_line(code, err, 2, words)
+    assert set(tmp_path.iterdir()) == before
+
+
+def test_a_run_from_a_file_and_a_scene_from_one(capsys, tmp_path, monkeypatch):
+    """``run FILE.nc``: case 7's settings, the run named after the file, scored against nothing
+    (it says so); ``--initial FILE.nc`` with a scene starts the scene from the file; the
+    Python entry takes a Dataset. All three start from the same state."""
+    import swe_sphere
+
+    monkeypatch.chdir(tmp_path)
+    _dataset().to_netcdf("state.nc")
+    code, out, err = cli_main(capsys, "run", "state.nc", *TINY, "--days", "0.25", "--level", "500")
+    assert code == 0, err
+    assert "error       none: nothing to score against" in out
+    code, _, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--days", "0.25", "--initial", "state.nc")
+    assert code == 0, err
+    from_file = xr.open_dataset("state_ne2np4_kgu35_0.25d.nc", decode_times=False)
+    scene = xr.open_dataset("reanalysis_in_tc2_steady_ne2np4_ssprk3_0.25d.nc", decode_times=False)
+    ds = swe_sphere.run(_dataset(), ne=2, days=0.25, device="cpu")
+    h0 = from_file.h.isel(time=0).values
+    assert np.array_equal(h0, scene.h.isel(time=0).values) and np.array_equal(h0, ds.h.isel(time=0).values)
+    mean = float((from_file.area * h0).sum() / from_file.area.sum())
+    assert abs(mean - 5500.0) < 2.0, mean  # ne2's GLL quadrature of a degree-12 field: 0.85 m off
+
+
+def test_case_7_starts_from_its_reference_and_is_scored_against_it(capsys, tmp_path, monkeypatch):
+    """tc7_era_january at ne 2: the day-0 state is T213's (its error 0 to round-off), the day-1
+    error against T213 finite and that of a coarse grid (1e-3 to 1e-2 in h + hs)."""
+    import swe_sphere
+
+    ds = swe_sphere.run("tc7_era_january", ne=2, days=1, device="cpu")
+    first, day1 = ds.ref_l2_h_surface.values[0], ds.ref_l2_h_surface.sel(time=1).item()
+    assert first < 1e-12 and 1e-3 < day1 < 1e-2, (first, day1)
+
+
+def test_a_missing_initial_file_and_a_bad_truncation(tmp_path):
+    """The scene's refusals: no initial_file, a truncation above the grid's, not whole."""
+    from swe_sphere.config.scene import load_scene
+
+    text = (DATA.parent / "tc7_era_july.toml").read_text()
+    (tmp_path / "none.toml").write_text(text.replace('initial_file = "data/eraint_july_500hPa.nc"', ""))
+    with pytest.raises(SceneError, match="case.initial_file is missing"):
+        load_scene(tmp_path / "none.toml", ne=2)
+    with pytest.raises(SceneError, match="truncation T300 is above the T239"):
+        load_scene("tc7_era_july", ne=2, overrides={"case.truncation": 300})
+    with pytest.raises(SceneError, match="case.truncation must be a whole degree"):
+        load_scene("tc7_era_july", ne=2, overrides={"case.truncation": 10.5})

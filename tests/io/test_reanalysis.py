@@ -181,7 +181,7 @@ def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_pa
     naming the file, exit status 2, and no run file."""
     monkeypatch.chdir(tmp_path)
     cases = _bad(tmp_path)
-    for name, (content, words) in cases.items():
+    for name, (content, _) in cases.items():
         if isinstance(content, str):
             (tmp_path / name).write_text(content)
         else:

@@ -34,6 +34,7 @@ STABILITY_CASES = (
     "tc5_mountain",
     "tc6_rossby_haurwitz",
     "galewsky",
+    "tc7_era_january",
     "tc2_steady_alpha_pi4_100d",
     "tc6_inviscid_ne30",
 )  # = the labels of stability.HARD_CASES (not imported: Warp)

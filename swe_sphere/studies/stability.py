@@ -33,6 +33,7 @@ HARD_CASES = (
     ("tc5_mountain", "tc5_mountain", None, None),
     ("tc6_rossby_haurwitz", "tc6_rossby_haurwitz", None, None),
     ("galewsky", "galewsky", None, None),
+    ("tc7_era_january", "tc7_era_january", None, None),  # Williamson's case 7: a real spectrum
     ("tc2_steady_alpha_pi4_100d", "tc2_steady_alpha_pi4", 100.0, None),
     ("tc6_inviscid_ne30", "tc6_rossby_haurwitz_inviscid", None, 30),  # HOMME's known failure
 )

@@ -246,3 +246,31 @@ def test_a_missing_initial_file_and_a_bad_truncation(tmp_path):
         load_scene("tc7_era_july", ne=2, overrides={"case.truncation": 300})
     with pytest.raises(SceneError, match="case.truncation must be a whole degree"):
         load_scene("tc7_era_july", ne=2, overrides={"case.truncation": 10.5})
+
+
+def test_case_7_in_the_studies(capsys, tmp_path, monkeypatch):
+    """``sweep`` takes tc7_era_january as any case (ne 2, one day): its runs scored against the
+    case's T213 file (total error in h + hs of a coarse grid, 6e-3)."""
+    import pandas as pd
+
+    monkeypatch.chdir(tmp_path)
+    args = ("sweep", "tc7_era_january", "--ne", "2", "--days", "1", "--steppers", "ssprk3", "--dt", "1800,3600")
+    code, _, err = cli_main(capsys, *args, "--device", "cpu", "--output", "sw")
+    assert code == 0, err
+    sweep = pd.read_csv("sw/sweep.csv")
+    assert set(sweep.reference) == {"tc7_era_january_T213.nc"}
+    assert np.all((4e-3 < sweep.total_error) & (sweep.total_error < 1e-2)), sweep.total_error
+
+
+@pytest.mark.slow
+def test_case_7_in_the_stability_suite(capsys, tmp_path, monkeypatch):
+    """``stability tc7_era_january`` (ne 2, one day): the bisection finds a largest stable ssprk3
+    dt between 1 and 2 gravity-wave limits (5400 s, 1.32, when written)."""
+    import pandas as pd
+
+    monkeypatch.chdir(tmp_path)
+    args = ("stability", "tc7_era_january", "--ne", "2", "--days", "1", "--steppers", "ssprk3")
+    code, _, err = cli_main(capsys, *args, "--device", "cpu", "--output", "st")
+    assert code == 0, err
+    row = pd.read_csv("st/stability.csv").iloc[0]
+    assert row.case == "tc7_era_january" and 1.0 < row.courant_gravity < 2.0 and row.dt_stable < row.dt_unstable

@@ -157,9 +157,13 @@ def _member_starts(p, sweep: bool) -> None:
         "--initial",
         type=path,
         metavar="ENSEMBLE.nc",
-        help="with --members: member k starts from member k of an ensemble's run file at its last time; "
-        "without: the scene starts from a reanalysis file's state (a lat-lon netCDF file of height and wind, "
-        "swe_sphere.io.reanalysis)",
+        help="with --members: member k starts from member k of an ensemble's run file at its last time"
+        + (
+            ""
+            if sweep
+            else "; without: the scene starts from a reanalysis file's state (a lat-lon netCDF file of height "
+            "and wind, swe_sphere.io.reanalysis)"
+        ),
     )
 
 

@@ -173,25 +173,50 @@ def _bad(tmp_path):
         ),
         "run_file.nc": (xr.Dataset({"h": (("time", "ncol"), np.ones((1, 5)))}), "a swe_sphere run or restart file"),
         "junk.nc": ("not netCDF at all", "not a readable netCDF file"),
+        "no_height.nc": (good.drop_vars("z"), "no the geopotential (m2 s-2) or geopotential height (m)"),
+        "fill.nc": ((good.assign(z=(good.z.dims, nan, good.z.attrs)), {"z": {"_FillValue": -9999.0}}), "missing"),
+        "no_units.nc": (good.assign(z=xr.Variable(good.z.dims, good.z.values)), "has no units"),
+        "half_wind.nc": (
+            good.assign(u=good.u.isel(lon=slice(0, 24)).rename(lon="lon2")),
+            "0 to 172.5 degrees in 24 columns",
+        ),
+        "wind_grid.nc": (
+            good.assign(
+                u=good.u.coarsen(lat=2, lon=2)
+                .mean()
+                .rename(lat="la", lon="lo")
+                .assign_coords(
+                    la=("la", _grid("gaussian", 12), {"units": "degrees_north"}),
+                    lo=("lo", 15.0 * np.arange(24), {"units": "degrees_east"}),
+                )
+            ),
+            "different grids",
+        ),
     }
 
 
 def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_path, monkeypatch):
-    """Each bad file (and a level or time the file lacks, a truncated file) gets one line
-    naming the file, exit status 2, and no run file."""
+    """Each of 22 bad files or options (a level or time the file lacks, a truncated file, no
+    file) gets one line naming the file or value, exit status 2, and no run file."""
     monkeypatch.chdir(tmp_path)
     cases = _bad(tmp_path)
     for name, (content, _) in cases.items():
         if isinstance(content, str):
             (tmp_path / name).write_text(content)
         else:
-            content.to_netcdf(tmp_path / name)
+            content, encoding = content if isinstance(content, tuple) else (content, None)
+            content.to_netcdf(tmp_path / name, encoding=encoding)
+    (tmp_path / "folder.nc").mkdir()
     good = tmp_path / "good.nc"
     _dataset().to_netcdf(good)
     (tmp_path / "cut.nc").write_bytes(good.read_bytes()[:2000])
     cases["cut.nc"] = (None, "not a readable netCDF file")
     extra = {"good.nc": (["--level", "300"], "level 300 hPa is not in the file (levels 500 hPa)")}
     extra["good.nc "] = (["--time", "2021-02-01"], "time 2021-02-01 is not one of the file's")
+    extra["good.nc  "] = (["--time", "15 January"], "time '15 January' is not a date")
+    extra["good.nc   "] = (["--truncation", "40"], "truncation T40 is above the T23 its grid resolves exactly")
+    extra["missing.nc"] = ([], "file not found")
+    extra["folder.nc"] = ([], "file not found")
     before = set(tmp_path.iterdir())
     for name, (_, words) in cases.items():
         code, _, err = cli_main(capsys, "run", name, *TINY, "--days", "0.1")

@@ -7,8 +7,8 @@ height (m: times g₀ = 9.80665, WMO's standard gravity, to the geopotential), t
 ``standard_name`` or ``units``, and the wind u, v (m s⁻¹) is read at one level
 (``level``, hPa) and one time (``time``: an ISO date such as "2021-01-15T00" on a date
 coordinate, "NAME=VALUE" on another dimension, e.g. "month=1", or a value of the one
-dimension left). Variables are found by ``standard_name`` (with cf_xarray where installed),
-else by the usual names (``NAMES``). The fields are analysed into spherical harmonics with
+dimension left). Variables are found by their CF ``standard_name``, else by the usual names
+(``NAMES``); a file is read with netCDF4 itself (xarray's open costs a run 2-3 s of imports). The fields are analysed into spherical harmonics with
 ``ducc0.sht.analysis_2d`` in the grid's own exact quadrature (Gauss–Legendre for a Gaussian
 grid, Clenshaw–Curtis for a regular grid with poles, Fejér's rules without them), the wind
 as its vorticity and divergence (ducc0's spin-1 transform: (−v, u) on the colatitude–longitude
@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import functools
 import math
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,48 +83,102 @@ def _rings(n: int) -> dict[str, np.ndarray]:
     }
 
 
-def _open(source, where: str):
-    """``source`` as an ``xarray.Dataset`` (a path opened lazily), refusing a file netCDF cannot
-    read and one of our own run or restart files."""
-    import xarray as xr
+@dataclass(frozen=True)
+class _Variable:
+    """A file's variable as the reader sees it: its name, dimensions, attributes and values
+    (float64 where numeric, fill values NaN, dates as datetime64) read on ``values()``."""
 
-    if isinstance(source, xr.Dataset):
-        ds = source
-    else:
+    name: str
+    dims: tuple
+    attrs: dict
+    values: object  # () -> np.ndarray
+
+
+@dataclass(frozen=True)
+class _Source:
+    """A netCDF file or an ``xarray.Dataset`` as the reader sees it: ``variables`` by name
+    (data and coordinates), ``sizes`` of its dimensions, its global ``attrs``."""
+
+    variables: dict
+    sizes: dict
+    attrs: dict
+    close: object = lambda: None  # () -> None: the file closed
+
+    def data(self) -> list[str]:
+        """The names of the variables that are not a dimension's coordinate."""
+        return [n for n, v in self.variables.items() if v.dims != (n,)]
+
+    def coordinate(self, dim: str) -> np.ndarray:
+        """The values along ``dim``: its coordinate, else 0, 1, ..."""
+        var = self.variables.get(dim)
+        return var.values() if var is not None and var.dims == (dim,) else np.arange(self.sizes[dim])
+
+
+def _netcdf_values(var) -> np.ndarray:
+    """A netCDF4 variable read whole and unpacked, its fill values NaN, a time axis as datetime64."""
+    import netCDF4
+
+    values = var[...]
+    units = getattr(var, "units", "")
+    if isinstance(units, str) and " since " in units and var.ndim == 1:
+        try:
+            dates = netCDF4.num2date(
+                values, units, getattr(var, "calendar", "standard"), only_use_cftime_datetimes=False
+            )
+            return np.array([np.datetime64(d.isoformat()) for d in np.ravel(dates)], dtype="datetime64[s]")
+        except ValueError:  # units netCDF makes no dates of ("months since ..."): the numbers
+            pass
+    if np.ma.isMaskedArray(values):
+        values = np.ma.filled(values.astype(np.float64), np.nan) if values.dtype.kind in "fiu" else values.data
+    return np.asarray(values)
+
+
+def _open(source, where: str) -> _Source:
+    """``source`` (a path, read with netCDF4: xarray's open costs a run 2-3 s of imports, or an
+    ``xarray.Dataset``) as a ``_Source``, refusing a file netCDF cannot read and one of our own
+    run or restart files."""
+    if isinstance(source, (str, Path)):
+        import netCDF4
+
         path = Path(source)
         if not path.is_file():
             raise SceneError(f"{where}: file not found")
         try:
-            with warnings.catch_warnings():  # a _FillValue of NaN xarray calls non-conforming, among others
-                warnings.simplefilter("ignore")
-                ds = xr.open_dataset(path)
-        except Exception:  # netCDF4 / xarray raise several types, some over many lines
+            ds = netCDF4.Dataset(path)
+            ds.set_always_mask(True)
+            variables = {
+                n: _Variable(n, v.dimensions, {k: v.getncattr(k) for k in v.ncattrs()}, lambda v=v: _netcdf_values(v))
+                for n, v in ds.variables.items()
+            }
+            sizes = {n: len(d) for n, d in ds.dimensions.items()}
+            out = _Source(variables, sizes, {k: ds.getncattr(k) for k in ds.ncattrs()}, ds.close)
+        except Exception:  # netCDF4 raises several types, some over many lines
             raise SceneError(f"{where}: not a readable netCDF file (truncated, or another format)") from None
-    if "ncol" in ds.dims or "swe_sphere_checkpoint" in ds.attrs:
+    else:
+        variables = {
+            str(n): _Variable(str(n), tuple(map(str, v.dims)), dict(v.attrs), lambda v=v: np.asarray(v.values))
+            for n, v in source.variables.items()
+        }
+        out = _Source(variables, {str(k): v for k, v in source.sizes.items()}, dict(source.attrs))
+    if "ncol" in out.sizes or "swe_sphere_checkpoint" in out.attrs:
+        out.close()
         raise SceneError(
             f"{where}: a swe_sphere run or restart file, on the model's nodes, not a lat-lon state "
             '(start from it with case name = "file", path = ...)'
         )
-    return ds
+    return out
 
 
-def _find(ds, role: str, where: str, needed: bool = True):
-    """The name of ``ds``'s variable of ``role`` (``STANDARD``'s standard names, through
-    cf_xarray where installed, else ``NAMES``), or None when not ``needed``."""
-    try:
-        import cf_xarray  # noqa: F401  (the .cf accessor)
-
-        by_standard = ds.cf.standard_names
-    except ImportError:
-        by_standard = {}
-        for name, var in ds.data_vars.items():
-            by_standard.setdefault(var.attrs.get("standard_name"), []).append(name)
+def _find(ds: _Source, role: str, where: str, needed: bool = True):
+    """The name of ``ds``'s variable of ``role``: one whose ``standard_name`` is one of
+    ``STANDARD``'s (CF), else one of ``NAMES``; None when none and not ``needed``."""
+    data = ds.data()
     for standard in STANDARD[role]:
-        for name in by_standard.get(standard, []):
-            if name in ds.data_vars:
+        for name in data:
+            if ds.variables[name].attrs.get("standard_name") == standard:
                 return name
     for name in NAMES[role]:
-        if name in ds.data_vars:
+        if name in data:
             return name
     if needed:
         raise SceneError(
@@ -135,7 +188,7 @@ def _find(ds, role: str, where: str, needed: bool = True):
     return None
 
 
-def _scale(var, role: str, where: str) -> float:
+def _scale(var: _Variable, role: str, where: str) -> float:
     """The factor to m² s⁻² (the geopotential of height roles) or m s⁻¹ (wind) of ``var`` by its
     standard_name and units; ``SceneError`` for units that are neither."""
     units, standard = var.attrs.get("units"), var.attrs.get("standard_name", "")
@@ -156,12 +209,12 @@ def _scale(var, role: str, where: str) -> float:
     raise SceneError(f"{where}: {var.name} has units {units!r}; neither m (a height) nor m2 s-2 (a geopotential)")
 
 
-def _horizontal(ds, var, where: str) -> tuple[str, str]:
+def _horizontal(ds: _Source, var: _Variable, where: str) -> tuple[str, str]:
     """The latitude and longitude dimensions of ``var`` (by their units, standard names or names)."""
     found = {}
     for dim in var.dims:
-        coord = ds[dim] if dim in ds.variables else None
-        attrs = {} if coord is None else coord.attrs
+        coord = ds.variables.get(dim)
+        attrs = coord.attrs if coord is not None else {}
         units, standard = normal(attrs.get("units", "")), attrs.get("standard_name", "")
         if units in LAT_UNITS - {"degrees", "degree"} or standard == "latitude" or dim in ("lat", "latitude"):
             found["lat"] = dim
@@ -172,63 +225,76 @@ def _horizontal(ds, var, where: str) -> tuple[str, str]:
     return found["lat"], found["lon"]
 
 
-def _select(ds, var, level, time, where: str):
-    """``var`` at ``level`` (hPa) and ``time`` (module docstring), its other dimensions gone."""
+def _select(ds: _Source, var: _Variable, level, time, where: str):
+    """(values (lat, lon), its latitude and longitude dimensions) of ``var`` at ``level`` (hPa)
+    and ``time`` (module docstring), its other dimensions gone."""
     lat, lon = _horizontal(ds, var, where)
-    rest = [d for d in var.dims if d not in (lat, lon)]
+    values, dims = var.values(), list(var.dims)
+    rest = [d for d in dims if d not in (lat, lon)]
     vertical = next((d for d in rest if d in LEVEL_NAMES or _pressure_factor(ds, d) is not None), None)
+
+    def take(dim, index):
+        nonlocal values
+        values = np.take(values, index, axis=dims.index(dim))
+        dims.remove(dim)
+        rest.remove(dim)
+
     if level is not None:
-        var = _at_level(ds, var, vertical, float(level), where)
-        rest = [d for d in rest if d != vertical]
+        index = _at_level(ds, var, vertical, float(level), where)
+        if index is not None:
+            take(vertical, index)
     if time is not None:
         dim, value = str(time).split("=", 1) if "=" in str(time) else (None, str(time))
         left = [d for d in rest if d != vertical]
-        left = [d for d in left if var.sizes[d] > 1] if len(left) > 1 else left  # the one it can mean
+        left = [d for d in left if ds.sizes[d] > 1] if len(left) > 1 else left  # the one it can mean
         dim = dim.strip() if dim is not None else (left[0] if len(left) == 1 else None)
-        if dim is None or dim not in var.dims:
+        if dim is None or dim not in rest:
             have = ", ".join(rest) or "none"
             raise SceneError(f"{where}: time {time!r}: no such dimension of {var.name} (its others: {have})")
-        var = _at_time(ds, var, dim, value.strip(), where)
-        rest = [d for d in rest if d != dim]
-    for dim in rest:
-        if var.sizes[dim] == 1:
-            var = var.isel({dim: 0})
+        take(dim, _at_time(ds, dim, value.strip(), where))
+    for dim in list(rest):
+        if ds.sizes[dim] == 1:
+            take(dim, 0)
         elif dim == vertical:
             raise SceneError(f"{where}: {var.name} is 3-D: give a level (hPa; the file has {_shown(ds, dim)})")
         else:
-            raise SceneError(f"{where}: {var.name} has {var.sizes[dim]} {dim} values: give a time ({_shown(ds, dim)})")
-    return var.transpose(lat, lon)
+            raise SceneError(f"{where}: {var.name} has {ds.sizes[dim]} {dim} values: give a time ({_shown(ds, dim)})")
+    return (values if dims == [lat, lon] else values.T), lat, lon
 
 
-def _pressure_factor(ds, dim) -> float | None:
-    units = ds[dim].attrs.get("units") if dim in ds.variables else None
+def _pressure_factor(ds: _Source, dim) -> float | None:
+    var = ds.variables.get(dim)
+    units = None if var is None else var.attrs.get("units")
     return None if units is None else PRESSURE_UNITS.get(normal(units))
 
 
-def _shown(ds, dim) -> str:
-    values = ds[dim].values if dim in ds.variables else np.arange(ds.sizes[dim])
+def _shown(ds: _Source, dim) -> str:
+    values = ds.coordinate(dim)
     text = [str(v)[:19] if np.issubdtype(values.dtype, np.datetime64) else f"{v:g}" for v in values[:8]]
     return f"{dim} " + ", ".join(text) + (", ..." if values.size > 8 else "")
 
 
-def _at_level(ds, var, vertical, level: float, where: str):
-    """``var`` at pressure ``level`` hPa: on its vertical dimension, or a scalar level coordinate."""
+def _at_level(ds: _Source, var: _Variable, vertical, level: float, where: str) -> int | None:
+    """The index of pressure ``level`` hPa on ``var``'s vertical dimension (None: a scalar level
+    coordinate that is ``level``)."""
     if vertical is None:
-        scalar = next((c for c in ds.coords if c in LEVEL_NAMES and ds[c].ndim == 0), None)
-        if scalar is not None and abs(float(ds[scalar]) * (_pressure_factor(ds, scalar) or 1.0) - level) < 1e-6:
-            return var
+        scalar = next((n for n in LEVEL_NAMES if n in ds.variables and ds.variables[n].dims == ()), None)
+        if scalar is not None:
+            value = float(ds.variables[scalar].values()) * (_pressure_factor(ds, scalar) or 1.0)
+            if abs(value - level) < 1e-6:
+                return None
         raise SceneError(f"{where}: level {level:g} hPa: {var.name} has no vertical dimension (dimensions {var.dims})")
-    values = np.asarray(ds[vertical].values, dtype=np.float64) * (_pressure_factor(ds, vertical) or 1.0)
+    values = np.asarray(ds.coordinate(vertical), dtype=np.float64) * (_pressure_factor(ds, vertical) or 1.0)
     hit = np.flatnonzero(np.abs(values - level) <= 1e-6 * max(1.0, level))
     if hit.size == 0:
         shown = ", ".join(f"{v:g}" for v in values)
         raise SceneError(f"{where}: level {level:g} hPa is not in the file (levels {shown} hPa)")
-    return var.isel({vertical: int(hit[0])})
+    return int(hit[0])
 
 
-def _at_time(ds, var, dim: str, value: str, where: str):
-    """``var`` at the one ``dim`` value that ``value`` names (a date to its given precision)."""
-    coord = ds[dim].values if dim in ds.variables else np.arange(ds.sizes[dim])
+def _at_time(ds: _Source, dim: str, value: str, where: str) -> int:
+    """The index of the one ``dim`` value that ``value`` names (a date to its given precision)."""
+    coord = ds.coordinate(dim)
     if np.issubdtype(coord.dtype, np.datetime64):
         try:
             hit = np.flatnonzero(coord.astype(np.datetime64(value).dtype) == np.datetime64(value))
@@ -242,17 +308,16 @@ def _at_time(ds, var, dim: str, value: str, where: str):
     if hit.size != 1:
         many = "matches several" if hit.size else "is not one"
         raise SceneError(f"{where}: {dim} {value} {many} of the file's ({_shown(ds, dim)})")
-    return var.isel({dim: int(hit[0])})
+    return int(hit[0])
 
 
-def _grid(ds, var, where: str):
+def _grid(ds: _Source, values: np.ndarray, lat_dim: str, lon_dim: str, where: str):
     """(values (nlat, nlon) north to south and from the first longitude east, φ₀ (rad), the
-    ring layout, its exact degree) of a selected 2-D ``var``; ``SceneError`` for a grid that is
+    ring layout, its exact degree) of selected 2-D ``values``; ``SceneError`` for a grid that is
     not global, not uniform in longitude or of rings ducc0 cannot integrate exactly."""
-    lat_dim, lon_dim = var.dims
-    lat = np.asarray(ds[lat_dim].values, dtype=np.float64)
-    lon = np.asarray(ds[lon_dim].values, dtype=np.float64)
-    values = np.asarray(var.values, dtype=np.float64)
+    lat = np.asarray(ds.coordinate(lat_dim), dtype=np.float64)
+    lon = np.asarray(ds.coordinate(lon_dim), dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
     if lat.size > 1 and lat[1] < lat[0]:
         lat, values = lat[::-1], values[::-1]
     if lon.size > 1 and lon[1] < lon[0]:
@@ -274,14 +339,14 @@ def _grid(ds, var, where: str):
     )
 
 
-def _field(ds, role: str, level, time, where: str, needed: bool = True):
+def _field(ds: _Source, role: str, level, time, where: str, needed: bool = True):
     """(values in m² s⁻² or m s⁻¹ north to south, φ₀, ring layout, exact degree) of ``role``, or None."""
     name = _find(ds, role, where, needed)
     if name is None:
         return None
-    var = _select(ds, ds[name], level, time, where)
-    scale = _scale(ds[name], role, where)
-    values, phi0, rings, degree = _grid(ds, var, where)
+    var = ds.variables[name]
+    scale = _scale(var, role, where)
+    values, phi0, rings, degree = _grid(ds, *_select(ds, var, level, time, where), where)
     bad = np.count_nonzero(~np.isfinite(values))
     if bad:
         raise SceneError(f"{where}: {name} has {bad} missing values (NaN or fill values): a state must be whole")
@@ -336,8 +401,10 @@ def analyse(source, level=None, time=None, truncation=None, grid_degree=None, su
 
     where = where or (f"initial file {str(source)!r}" if isinstance(source, (str, Path)) else "the initial dataset")
     ds = _open(source, where)
-    height = _field(ds, "height", level, time, where)
-    u, v = (_field(ds, role, level, time, where) for role in ("u", "v"))
+    try:
+        height, u, v = (_field(ds, role, level, time, where) for role in ("height", "u", "v"))
+    finally:
+        ds.close()
     if v[1:] != u[1:] or height[1:] != u[1:]:
         raise SceneError(f"{where}: the height and the wind are on different grids")
     _, phi0, rings, degree = height
@@ -367,7 +434,10 @@ def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
 
     where = f"surface file {str(surface)!r} ({where})"
     ds = _open(surface, where)
-    values, phi0, rings, degree = _field(ds, "surface", None, None, where)
+    try:
+        values, phi0, rings, degree = _field(ds, "surface", None, None, where)
+    finally:
+        ds.close()
     if lmax > degree:
         raise SceneError(f"{where}: its grid resolves T{degree}, below the state's T{lmax}")
     return weights * ducc0.sht.analysis_2d(map=values[None], spin=0, lmax=lmax, geometry=rings, phi0=phi0)[0]

@@ -8,10 +8,10 @@ height (m: times g₀ = 9.80665, WMO's standard gravity, to the geopotential), t
 (``level``, hPa) and one time (``time``: an ISO date such as "2021-01-15T00" on a date
 coordinate, "NAME=VALUE" on another dimension, e.g. "month=1", or a value of the one
 dimension left). Variables are found by their CF ``standard_name``, else by the usual names
-(``NAMES``); a file is read with netCDF4 itself (xarray's open costs a run 2-3 s of imports). The fields are analysed into spherical harmonics with
-``ducc0.sht.analysis_2d`` in the grid's own exact quadrature (Gauss–Legendre for a Gaussian
-grid, Clenshaw–Curtis for a regular grid with poles, Fejér's rules without them), the wind
-as its vorticity and divergence (ducc0's spin-1 transform: (−v, u) on the colatitude–longitude
+(``NAMES``); a file is read with netCDF4 itself (xarray's open costs a run 2-3 s of imports).
+The fields are analysed into spherical harmonics with ``ducc0.sht.analysis_2d`` in the grid's
+own exact quadrature (Gauss–Legendre for a Gaussian grid, Clenshaw–Curtis for a regular grid
+with poles, Fejér's rules without them), the wind as its vorticity and divergence (ducc0's spin-1 transform: (−v, u) on the colatitude–longitude
 basis has E = −a δ_lm / √(l(l+1)), B = −a ζ_lm / √(l(l+1))), truncated, and synthesised at any
 points exactly as the spectral references are (``reference.spectral_fields``).
 

@@ -5,6 +5,9 @@ from dataclasses import dataclass
 
 # the scene's [planet] keys → the Planet attributes they set
 PLANET_KEYS = {"radius": "a", "omega": "omega", "gravity": "g"}
+# A planet value's bounds: the grid's area takes a², the ∇⁴'s ν a⁴ and the balance g·h, which a
+# float holds only for values within about 1e±77; every planet of interest is far inside.
+PLANET_RANGE = (1e-30, 1e30)
 
 
 @dataclass(frozen=True)
@@ -21,13 +24,17 @@ class Planet:
         """The planet of a scene's ``[planet]`` table ({"radius": m, "omega": s⁻¹,
         "gravity": m s⁻²}, each optional, the rest Williamson's). Raises ValueError
         naming the key (``planet.radius`` ...) of an unknown key or of a value that
-        is not a positive finite number."""
+        is not a positive finite number within ``PLANET_RANGE``."""
         values = {}
         for key, value in (table or {}).items():
             if key not in PLANET_KEYS:
                 raise ValueError(f"unknown key planet.{key} (known: {', '.join(PLANET_KEYS)})")
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise ValueError(f"planet.{key} must be a positive finite number (got {value!r})")
+            if not PLANET_RANGE[0] <= value <= PLANET_RANGE[1]:
+                raise ValueError(
+                    f"planet.{key} must be between {PLANET_RANGE[0]:g} and {PLANET_RANGE[1]:g} (got {value!r})"
+                )
             values[PLANET_KEYS[key]] = float(value)
         return cls(**values)
 

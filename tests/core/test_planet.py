@@ -119,6 +119,8 @@ def test_cli_small_planet_run_and_continuation_keep_the_planet(tmp_path, capsys)
         ("planet.omega=inf", ("planet.omega", "finite")),
         ("planet.omega='fast'", ("planet.omega", "fast")),
         ("planet.mass=6e24", ("planet.mass", "radius, omega, gravity")),
+        ("planet.radius=1e308", ("planet.radius", "between 1e-30 and 1e+30", "1e+308")),
+        ("planet.gravity=1e-300", ("planet.gravity", "between")),
     ],
 )
 def test_bad_planet_is_one_line_exit_2(tmp_path, capsys, setting, words):
@@ -126,6 +128,14 @@ def test_bad_planet_is_one_line_exit_2(tmp_path, capsys, setting, words):
     refused naming it, before anything is written."""
     cli_one_line(capsys, ["run", "tc2_steady", *TINY, "-s", setting, "--output", tmp_path / "x.nc"], 2, *words)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_planet_at_the_range_s_ends_runs_and_scores():
+    """The largest gravity a scene takes (1e30; TC2's depth h0/g about 3e-26 m) runs and scores
+    finite errors (at 1e300 the depth's squared norm was zero and its scoring an internal
+    ZeroDivisionError; a radius of 1e308 overflowed the grid's area)."""
+    ds = tc2(days=0.05, planet={"gravity": 1e30})
+    assert 0 < float(ds["l2_h"].values[-1]) < 1e-3 and 0 < float(ds["l2_wind"].values[-1]) < 1e-3
 
 
 def test_reference_scoring_is_for_the_earth_only():

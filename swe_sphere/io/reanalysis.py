@@ -141,6 +141,8 @@ def _open(source, where: str) -> _Source:
         import netCDF4
 
         path = Path(source)
+        if path.is_dir():
+            raise SceneError(f"{where}: is a directory, not a netCDF file")
         if not path.is_file():
             raise SceneError(f"{where}: file not found")
         try:
@@ -399,7 +401,7 @@ def analyse(source, level=None, time=None, truncation=None, grid_degree=None, su
     ``where`` names the source in messages. Raises ``SceneError``."""
     import ducc0
 
-    where = where or (f"initial file {str(source)!r}" if isinstance(source, (str, Path)) else "the initial dataset")
+    where = where or (f"initial file {source}" if isinstance(source, (str, Path)) else "the initial dataset")
     ds = _open(source, where)
     try:
         height, u, v = (_field(ds, role, level, time, where) for role in ("height", "u", "v"))
@@ -432,7 +434,7 @@ def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
     """The surface geopotential's coefficients (m² s⁻²) from the file ``surface`` at the state's truncation."""
     import ducc0
 
-    where = f"surface file {str(surface)!r} ({where})"
+    where = f"surface file {surface} ({where})"
     ds = _open(surface, where)
     try:
         values, phi0, rings, degree = _field(ds, "surface", None, None, where)

@@ -216,7 +216,7 @@ def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_pa
     extra["good.nc  "] = (["--time", "15 January"], "time '15 January' is not a date")
     extra["good.nc   "] = (["--truncation", "40"], "truncation T40 is above the T23 its grid resolves exactly")
     extra["missing.nc"] = ([], "file not found")
-    extra["folder.nc"] = ([], "file not found")
+    extra["folder.nc"] = ([], "folder.nc: is a directory")
     before = set(tmp_path.iterdir())
     for name, (_, words) in cases.items():
         code, _, err = cli_main(capsys, "run", name, *TINY, "--days", "0.1")

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cases.library import Case
-from ..cases.reference import SpectralReference, reference_path, spectral_fields
+from ..cases.reference import SpectralReference, reference_path, spectral_fields, synthesis
 from ..core.constants import EARTH
 from ..core.errors import SceneError
 from .units import DEPTH_UNITS, GEOPOTENTIAL_UNITS, LAT_UNITS, LON_UNITS, PRESSURE_UNITS, WIND_UNITS, normal
@@ -171,9 +171,9 @@ def _open(source, where: str) -> _Source:
     return out
 
 
-def _find(ds: _Source, role: str, where: str, needed: bool = True):
+def _find(ds: _Source, role: str, where: str) -> str:
     """The name of ``ds``'s variable of ``role``: one whose ``standard_name`` is one of
-    ``STANDARD``'s (CF), else one of ``NAMES``; None when none and not ``needed``."""
+    ``STANDARD``'s (CF), else one of ``NAMES``; ``SceneError`` when none."""
     data = ds.data()
     for standard in STANDARD[role]:
         for name in data:
@@ -182,12 +182,10 @@ def _find(ds: _Source, role: str, where: str, needed: bool = True):
     for name in NAMES[role]:
         if name in data:
             return name
-    if needed:
-        raise SceneError(
-            f"{where}: no {WHAT[role]} (standard_name {' or '.join(STANDARD[role])}, or a variable named "
-            f"{', '.join(NAMES[role])})"
-        )
-    return None
+    raise SceneError(
+        f"{where}: no {WHAT[role]} (standard_name {' or '.join(STANDARD[role])}, or a variable named "
+        f"{', '.join(NAMES[role])})"
+    )
 
 
 def _scale(var: _Variable, role: str, where: str) -> float:
@@ -341,11 +339,9 @@ def _grid(ds: _Source, values: np.ndarray, lat_dim: str, lon_dim: str, where: st
     )
 
 
-def _field(ds: _Source, role: str, level, time, where: str, needed: bool = True):
-    """(values in m² s⁻² or m s⁻¹ north to south, φ₀, ring layout, exact degree) of ``role``, or None."""
-    name = _find(ds, role, where, needed)
-    if name is None:
-        return None
+def _field(ds: _Source, role: str, level, time, where: str):
+    """(values in m² s⁻² or m s⁻¹ north to south, φ₀, ring layout, exact degree) of ``role``."""
+    name = _find(ds, role, where)
     var = ds.variables[name]
     scale = _scale(var, role, where)
     values, phi0, rings, degree = _grid(ds, *_select(ds, var, level, time, where), where)
@@ -384,11 +380,7 @@ class Analysed:
         shape = np.shape(lat)
         lat, lon = np.ravel(lat).astype(np.float64), np.mod(np.ravel(lon), 2 * math.pi)
         out = spectral_fields(self.h_surface, self.vorticity, self.divergence, self.lmax, self.a, lat, lon)
-        out["hs"] = (
-            np.zeros_like(lat)
-            if self.hs is None
-            else spectral_fields(self.hs, 0 * self.hs, 0 * self.hs, self.lmax, self.a, lat, lon)["h_surface"]
-        )
+        out["hs"] = np.zeros_like(lat) if self.hs is None else synthesis(self.hs, self.lmax, lat, lon)
         out["h"] = out["h_surface"] - out["hs"]
         return {k: v.reshape(shape) for k, v in out.items()}
 

@@ -45,7 +45,7 @@ def _fourth_power(x: float) -> float:
 def _coefficients(table: dict, given: list, grid: SceneGrid, spacing: Spacing, exponent: float):
     """(nu, nu_div, nu_s (m⁴ s⁻¹), notes) of ``resolve_hyperviscosity``: the ``given`` ones
     scaled as dx^``exponent`` and radius⁴, the others the e-folding rule's, or nu's. Raises
-    ``SceneError`` where one is past a float's range (a planet's radius of 1e308 m)."""
+    ``SceneError`` where one is past a float's range (an e-folding time of 1e-300 h)."""
     ratio, planet_factor = spacing.mean, _fourth_power(spacing.scale)
     nus = {key: table[key] * ratio**exponent * planet_factor for key in given}
     notes = []

@@ -63,9 +63,10 @@ def test_a_cut_past_a_floats_range_says_so():
 
 
 def test_a_hyperviscosity_past_a_floats_range_is_refused():
-    """galewsky's 3 h e-folding on a planet of 1e308 m: ν ∝ a⁴ raised OverflowError."""
-    with pytest.raises(SceneError, match=r"^hyperviscosity.nu on ne=12 np=8 and a planet of radius 1e\+308 m is past"):
-        load_scene("galewsky", overrides={"planet.radius": 1e308})
+    """galewsky at an e-folding time of 1e-300 h: ν ∝ a⁴ / τ raised OverflowError (a planet of
+    1e308 m did too; [planet] now refuses it, core/constants PLANET_RANGE)."""
+    with pytest.raises(SceneError, match=r"^hyperviscosity.nu on ne=12 np=8 and a planet of radius 6.37122e\+06 m is past"):
+        load_scene("galewsky", overrides={"hyperviscosity.efold_hours": 1e-300})
 
 
 def test_the_auto_schedule_of_tiny_steps_or_a_weak_hyperviscosity_ends():

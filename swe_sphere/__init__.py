@@ -29,8 +29,9 @@ returns their figures), ``kinetic_energy_spectrum`` and ``zonal_mean`` (a run's
 kinetic-energy spectrum by degree and zonal means, ``swe_sphere.studies.analysis``),
 ``gradient``, ``HeightMisfit``, ``PointHeights`` and ``HeightObservations`` (a run's
 gradient, of its final state or against observations at several steps, ``swe_sphere.adjoint``),
-``Ensemble``, ``Perturbation``, ``MemberFile`` and ``Variants`` (N members of one scene in the same launches,
-member k the bits of its single run, ``swe_sphere.ensemble``).
+``Perturbation``, ``MemberFile`` and ``Variants`` (how the N members of ``Simulation(scene,
+members=N, initial=...)`` start, member k the bits of its single run, ``swe_sphere.members``;
+``Ensemble``, their driver's deprecated name).
 Importing them initialises Warp quietly (``swe_sphere.core.runtime.init_warp``).
 """
 
@@ -49,10 +50,10 @@ _LAZY = {
     "HeightMisfit": "adjoint.costs",
     "PointHeights": "io.observations",  # h at points, the observation operator H and Hᵀ
     "HeightObservations": "io.observations",  # a cost of the run: observed h at several steps
-    "Ensemble": "ensemble.ensemble",  # N members of one scene in the same launches
-    "Perturbation": "ensemble.initial",  # an ensemble's seeded noise in h
-    "MemberFile": "ensemble.initial",  # an ensemble's initial states from an ensemble's run file
-    "Variants": "ensemble.initial",  # an ensemble's members with their own case parameters and Ω
+    "Ensemble": "ensemble.ensemble",  # deprecated: Simulation(scene, members=N)
+    "Perturbation": "members.initial",  # an ensemble's seeded noise in h
+    "MemberFile": "members.initial",  # an ensemble's initial states from an ensemble's run file
+    "Variants": "members.initial",  # an ensemble's members with their own case parameters and Ω
     # the errors (core.errors): every one is a SweSphereError
     **dict.fromkeys(
         [

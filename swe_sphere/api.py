@@ -8,7 +8,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from .config.scene import LOAD_KEYWORDS, flat_overrides, resolve_scene
+from .config.scene import LOAD_KEYWORDS, flat_overrides
 from .config.state_scene import is_state_file, state_scene
 from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
@@ -74,7 +74,7 @@ def run(
         read undecoded: ``ds.h.sel(time=3)``), lat, lon, area on ncol, the diagnostics
         time series (mass_change, l2_h, ...) and the resolved scene in ``ds.attrs["scene"]``.
         A scene with an [ensemble] (``ensemble={"members": N, ...}``) runs its members
-        (``swe_sphere.Ensemble``, as ``swe-sphere run`` does): the fields on (time, member, ncol)
+        (``Simulation`` with ``members``, as ``swe-sphere run`` does): the fields on (time, member, ncol)
         with their ``_mean`` and ``_spread``, the series on (time, member).
 
     Raises
@@ -110,19 +110,19 @@ def run(
 
 
 def _run(scene, overrides, device, output_file, overwrite, restart_every, progress, verbose, initial, graphs):
-    """``run`` once its arguments are checked and ``scene`` is a scene (name, path or Scene)."""
-    if resolve_scene(scene, overrides)[0].ensemble is not None:  # the scene's [ensemble]: its members
-        if initial is not None:
-            raise SceneError(
-                "initial: an [ensemble]'s members start from its perturbation (swe_sphere.Ensemble takes others)"
-            )
-        from .ensemble import Ensemble
+    """``run`` once its arguments are checked and ``scene`` is a scene (name, path or Scene): its
+    run file (or a temporary one) loaded in memory, time in model days (``output.TIME_ATTRS``)."""
+    # a scene's [ensemble] (``ensemble={"members": N, ...}``): its members, the one driver's
+    sim = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
+    log = tqdm.write if verbose else None  # output={"log_every_steps": N}: a line every N steps
+    import xarray as xr
 
-        runner, options = Ensemble(scene, device=device, graphs=graphs, **overrides), {"progress": progress}
-    else:
-        runner = Simulation(scene, device, progress=progress, initial=initial, graphs=graphs, **overrides)
-        options = {"log": tqdm.write if verbose else None}  # output={"log_every_steps": N}: a line every N steps
-    return _run_and_load(runner, output_file, overwrite, restart_every, options)
+    with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
+        path = Path(output_file) if output_file is not None else Path(tmp) / f"{sim.scene.name}.nc"
+        history = f"swe_sphere.run({sim.scene.name!r})"
+        sim.run(path, overwrite=overwrite, restart_every=restart_every, history=history, log=log)
+        with xr.open_dataset(path, decode_times=False) as ds:
+            return ds.load()
 
 
 @contextlib.contextmanager
@@ -142,22 +142,6 @@ def state_source(scene, overrides: dict):
             scene.to_netcdf(path)
             scene = path
         yield state_scene(scene, flat_overrides(overrides), **keywords), {}
-
-
-def _run_and_load(runner, output_file, overwrite: bool, restart_every: float | None, options: dict):
-    """Run ``runner`` (a ``Simulation`` or an ``Ensemble``, its run's ``options``) into
-    ``output_file`` (or a temporary file) and return the file's contents loaded in memory, time in
-    model days (``output.TIME_ATTRS``)."""
-    import xarray as xr
-
-    scene = runner.scene
-    with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
-        path = Path(output_file) if output_file is not None else Path(tmp) / f"{scene.name}.nc"
-        runner.run(
-            path, overwrite=overwrite, restart_every=restart_every, history=f"swe_sphere.run({scene.name!r})", **options
-        )
-        with xr.open_dataset(path, decode_times=False) as ds:
-            return ds.load()
 
 
 __all__ = ["run"]

@@ -1,6 +1,6 @@
 """The package's one step loop (Oceananigans' ``time_step!`` and its callbacks; JAX codes' one
 step mapped over members): ``Integrator`` advances ``Unit`` s, each a state with its members
-side by side (one member, or an ensemble's copies of the grid, ``ensemble.members.MemberGrid``),
+side by side (one member, or an ensemble's copies of the grid, ``members.grid.MemberGrid``),
 its model and its stepper, a block of steps at a time under the one bad-state guard:
 
 - each state of a block is flagged on the device (``BadNodes.watch``) and the flag read once at
@@ -15,7 +15,7 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
 Each step's Δt is the loop's Δt policy's (Oceananigans' fixed ``Δt``, ``aligned_time_step`` and
 ``TimeStepWizard``), an object with one method, ``take(unit, j, watch)``: ``FixedDt`` (a fixed,
 fitted or replayed Δt) or ``ControlledDt`` (a step control's). What a driver adds around the
-steps is an ``Observer``'s. ``Simulation.run``, ``Ensemble.step`` and ``advance`` and the
+steps is an ``Observer``'s. ``Simulation.run`` and ``advance`` (of one member or many) and the
 gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
 
 from __future__ import annotations

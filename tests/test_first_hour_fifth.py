@@ -94,7 +94,7 @@ def test_the_layout_refusal_names_the_drop_policy_not_the_stepper():
     """Item 13: "shared" asked of members that need a model each because of `--blow-up drop` blamed
     "stepper ssprk3"."""
     from swe_sphere import load_scene
-    from swe_sphere.ensemble.units import layout
+    from swe_sphere.members.units import layout
 
     scene = load_scene("tc2_steady", ne=2, np_=4, stepper="ssprk3")
     with pytest.raises(ValueError, match=r"^layout: these members need a model each \(blow_up 'drop'\): 'in_turn'$"):

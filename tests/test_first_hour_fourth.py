@@ -88,17 +88,18 @@ def test_an_ensemble_too_large_for_memory_is_refused_before_it_is_built(capsys, 
     """`run tc2_steady --ne 4 --days 0.1 --members 100000` printed nothing for 90 s (no memory
     check), where `--ne 100000` is refused at once with its estimate."""
     import swe_sphere.core.runtime as runtime
-    import swe_sphere.ensemble.ensemble as ensemble
+    import swe_sphere.simulation.members as members
+    from swe_sphere.simulation.simulation import Simulation
 
     monkeypatch.setattr(runtime, "available_memory", lambda: 2**30)
-    monkeypatch.setattr(ensemble, "CubedSphere", _not_built)
+    monkeypatch.setattr(members, "CubedSphere", _not_built)
     code, out, err = cli_main(capsys, *RUN, "--ne", "4", "--members", "100000", "--output", "e.nc")
     line = one_line(code, err, 3, "an ensemble of 100000 members of ne=4 np=4 with ssprk3", "1 GiB is available")
     assert "157 GiB" in line  # 100000 members x 1536 nodes x 1100 bytes
     assert out == "" and list(Path().iterdir()) == []
     monkeypatch.setattr(runtime, "available_memory", lambda: 2**40)  # memory enough: the check passes
     with pytest.raises(AssertionError, match="built before the memory check"):
-        ensemble.Ensemble("tc2_steady", 100, ne=4, device="cpu")
+        Simulation("tc2_steady", "cpu", members=100, ne=4)
 
 
 def _not_built(*args, **kwargs):

@@ -15,16 +15,18 @@ from .report import header, summary
 from .values import degree_band, netcdf_output, restart_precision, scene_overrides, varied
 
 
-def _continued(args, device, comm):
-    """The Simulation of ``run --continue``: a continuation (keeping the restart file's
-    ``--restart-every`` unless given: ``args.restart_every`` set), or with another
-    --stepper or --dt a branch (``Simulation.from_checkpoint``); refuses a changed
-    scene or grid, and a continuation of no step (at its end day, or at the --days given)."""
+def _continued(args, device, comm, members: int | None):
+    """The Simulation of ``run --continue``: a continuation, of one run or of ``members``
+    (keeping the restart file's restart interval, control and output times), or with another
+    --stepper or --dt a branch of one run (``Simulation.from_checkpoint``); refuses a changed
+    scene or grid, any -s, and a continuation of no step (at its end day, or at the --days
+    given)."""
     from ..config.scene import load_scene, with_days
     from ..simulation import checkpoint
     from ..simulation.simulation import Simulation
 
-    ck = checkpoint.read_on_root(args.continue_from, comm)  # the whole state on rank 0 only
+    # the whole state on rank 0 only; an ensemble's on every rank (each steps its own members)
+    ck = checkpoint.read(args.continue_from) if members else checkpoint.read_on_root(args.continue_from, comm)
     for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np)):
         if value is not None and value != have:
             raise CheckpointError(
@@ -50,8 +52,7 @@ def _continued(args, device, comm):
             raise CheckpointError(
                 f"{args.continue_from} is a run of another scene than {args.scene} (differs in: {differ})"
             )
-    continued = args.stepper is None and args.dt is None  # not a branch (which refuses a length of 0 days itself)
-    if continued:  # 0 steps would leave an empty file that blocks the real one
+    if args.stepper is None and args.dt is None:  # not a branch: 0 steps would leave an empty file
         end = ck.scene if args.days is None else with_days(ck.scene, args.days)
         if args.days is None and ck.day >= end.days:
             raise CheckpointError(
@@ -62,20 +63,9 @@ def _continued(args, device, comm):
                 f"{args.continue_from}: the checkpoint is already at day {ck.day:g} (--days is the "
                 "model day the continued run ends at: give a later one)"
             )
-    if (
-        continued and args.restart_every is None
-    ):  # a run that wrote restart files goes on writing them, as if never stopped
-        args.restart_every = ck.restart_every
-    return Simulation.from_checkpoint(
-        ck,
-        device,
-        days=args.days,
-        stepper=args.stepper,
-        dt=args.dt,
-        progress=not args.no_progress,
-        comm=comm,
-        graphs=args.graphs,
-    )
+    kw = {"days": args.days, "progress": not args.no_progress, "comm": comm, "graphs": args.graphs}
+    branch = {"members": True} if members else {"stepper": args.stepper, "dt": args.dt}
+    return Simulation.from_checkpoint(ck, device, **kw, **branch)
 
 
 def default_output(scene, members: int | None = None) -> Path:
@@ -126,8 +116,7 @@ def _refuse_a_blown_up_run(output: Path) -> None:
 
 
 def command(args) -> int:
-    from ..config.scene import load_scene, resolve_path
-    from ..config.state_scene import is_state_file, start_overrides, state_scene
+    from ..config.scene import resolve_path
     from ..core import mpi
     from ..core.backend import pick_device
     from ..core.clock import is_interval
@@ -137,47 +126,7 @@ def command(args) -> int:
     from ..simulation.schedules import check_restart_interval
     from ..simulation.writers import restart_path
 
-    members = args.members
-    if args.continue_from is not None:  # an ensemble's restart file continues as an ensemble
-        from ..io.restart_file import ensemble_members
-
-        members = ensemble_members(args.continue_from)
-        if args.members is not None and members != args.members:
-            held = "a single run" if members is None else f"{members} members"
-            raise SceneError(f"--members {args.members}: {args.continue_from} holds {held}")
-    if args.continue_from is None:
-        if args.scene is None:
-            raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
-        given = dict(
-            ne=args.ne,
-            np_=args.np,
-            dt=args.dt,
-            days=args.days,
-            stepper=args.stepper,
-            mesh=args.mesh,
-            overrides={**scene_overrides(args), **({"output.cells": False} if args.no_cells else {})},
-            restart_every=args.restart_every,  # a dt the scene scales is cut to divide it too
-        )
-        given["overrides"] |= start_overrides(
-            args.initial if members is None else None, args.level, args.time, args.truncation
-        )
-        scene = state_scene(args.scene, **given) if is_state_file(args.scene) else load_scene(args.scene, **given)
-        if members is None and scene.ensemble is not None:  # the scene's [ensemble]
-            members = scene.ensemble["members"]
-        _check_ensemble_options(args, members)
-        if members is not None and args.perturbation_degrees is not None:
-            degree_band(args.perturbation_degrees, scene)  # before anything is written
-        output = args.output or default_output(scene, members)
-    else:
-        _check_ensemble_options(args, members)
-        scene = None  # the restart file's
-        stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
-        changes = "".join(
-            f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v
-        )  # a branch's (or a no-op's)
-        output = args.output or args.continue_from.with_name(
-            f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
-        )
+    scene, members, output = _new_run(args) if args.continue_from is None else _continuation(args)
     netcdf_output(output)  # after the scene's own refusals, as check_target
     args.progress_lines = _progress_lines(args)
     # the options' own refusals before the file system is looked at ("output file exists")
@@ -204,15 +153,50 @@ def command(args) -> int:
     check_target(output, args.overwrite)
     if args.restart_every is not None:  # else written only on SIGINT/SIGTERM, and then not over an existing one
         check_target(restart_path(output), args.overwrite)
-    comm = mpi.world()  # under mpiexec: one run over all ranks
-    if members is not None:  # its members over the ranks under mpiexec
-        with mpi.watch_failures(comm, close_open_runs):
-            return _ensemble(args, scene, output, device, comm)
-    with (
-        _output_lock(output, comm),
-        mpi.watch_failures(comm, close_open_runs),
-    ):  # a failure on one rank alone ends the job
-        return _run(args, scene, output, device, comm)
+    comm = mpi.world()  # under mpiexec: one run over all ranks (its elements, or its members)
+    with _output_lock(output, comm), mpi.watch_failures(comm, close_open_runs):  # a failure on one rank ends the job
+        return _run(args, scene, members, output, device, comm)
+
+
+def _new_run(args) -> tuple:
+    """(the scene, its members or None, the output) of ``run SCENE``: an -s [ensemble] table takes
+    --members as its member count."""
+    from ..config.scene import load_scene
+    from ..config.state_scene import is_state_file, start_overrides, state_scene
+
+    if args.scene is None:
+        raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
+    overrides = {**scene_overrides(args), **({"output.cells": False} if args.no_cells else {})}
+    if args.members is not None and any(k.startswith("ensemble.") for k in overrides):
+        overrides.setdefault("ensemble.members", args.members)
+    overrides |= start_overrides(args.initial if args.members is None else None, args.level, args.time, args.truncation)
+    given = {"ne": args.ne, "np_": args.np, "dt": args.dt, "days": args.days, "stepper": args.stepper}
+    # a dt the scene scales is cut to divide the restart interval too
+    given |= {"mesh": args.mesh, "overrides": overrides, "restart_every": args.restart_every}
+    scene = state_scene(args.scene, **given) if is_state_file(args.scene) else load_scene(args.scene, **given)
+    members = args.members
+    if members is None and scene.ensemble is not None:  # the scene's [ensemble]
+        members = scene.ensemble["members"]
+    _check_ensemble_options(args, members)
+    if members is not None and args.perturbation_degrees is not None:
+        degree_band(args.perturbation_degrees, scene)  # before anything is written
+    return scene, members, args.output or default_output(scene, members)
+
+
+def _continuation(args) -> tuple:
+    """(None: the restart file's scene, the restart file's members or None, the output) of ``run
+    --continue R``; an ensemble's restart file continues as an ensemble."""
+    from ..io.restart_file import ensemble_members
+
+    members = ensemble_members(args.continue_from)
+    if args.members is not None and members != args.members:
+        held = "a single run" if members is None else f"{members} members"
+        raise SceneError(f"--members {args.members}: {args.continue_from} holds {held}")
+    _check_ensemble_options(args, members)
+    stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
+    changes = "".join(f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v)  # a branch's (or a no-op's)
+    name = f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
+    return None, members, args.output or args.continue_from.with_name(name)
 
 
 def _progress_lines(args):
@@ -277,67 +261,43 @@ def _check_ensemble_options(args, members: int | None) -> None:
             )
 
 
-def _ensemble(args, scene, output: Path, device, comm) -> int:
-    """``run --members N``: the scene's ensemble (``swe_sphere.ensemble.Ensemble``), or the
-    ensemble of the restart file continued, to its last day, its run file ``output`` (and its
-    restart files); a blow-up stops every member and keeps the file's good times."""
-    import time
+def _member_options(args, members: int | None, scene) -> dict:
+    """``run --members N``'s (or a scene's [ensemble]) ``Simulation`` options: the members' count
+    (None: the scene's), their start, layout and blow-up policy; {} for a single run."""
+    from ..members.initial import MemberFile, Perturbation, Variants
 
-    from ..ensemble import Ensemble, MemberFile, Perturbation, Variants
+    if members is None:
+        return {}
+    initial = None if args.initial is None else MemberFile(args.initial)
+    if args.vary is not None:
+        initial = Variants(varied(args.vary))
+    degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees, scene)
+    if args.perturbation or args.seed is not None or degrees is not None:
+        initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0, degrees)
+    # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
+    return {"members": args.members, "initial": initial, "layout": args.layout, "blow_up": args.blow_up or "stop"}
 
-    t0 = time.perf_counter()
-    if args.continue_from is not None:
-        ens = Ensemble.from_checkpoint(args.continue_from, days=args.days, device=device, graphs=args.graphs, comm=comm)
-        scene = ens.scene
-        restart_precision(args.precision, scene, args.continue_from)
-    else:
-        initial = None if args.initial is None else MemberFile(args.initial)
-        if args.vary is not None:
-            initial = Variants(varied(args.vary))
-        degrees = None if args.perturbation_degrees is None else degree_band(args.perturbation_degrees, scene)
-        if args.perturbation or args.seed is not None or degrees is not None:
-            initial = Perturbation(0.0 if args.perturbation is None else args.perturbation, args.seed or 0, degrees)
-        # members None: the scene's [ensemble] members (and, without a start given, its perturbation)
-        policy = {"blow_up": args.blow_up} if args.blow_up else {}
-        ens = Ensemble(
-            scene, args.members, initial, device=device, graphs=args.graphs, comm=comm, layout=args.layout, **policy
-        )
-    if not ens.root:  # rank 0 reports; the others' errors still reach stderr
-        sys.stdout = open(os.devnull, "w")
-    setup, first, before = time.perf_counter() - t0, ens.step_count, ens.wall_time
-    start = ens.invariants()  # collective: the run's drift, as a single run's summary gives it
-    _ensemble_header(args, ens, scene, output, device)
-    try:
-        ens.run(
-            output,
-            restart_every=args.restart_every,
-            overwrite=args.overwrite,
-            compress=args.compress,
-            history=" ".join(["swe-sphere", *(sys.argv[1:] if args.argv is None else args.argv)]),
-            progress=not args.no_progress,
-            notify=_note,
-            progress_lines=args.progress_lines,
-        )
-    except BlowUp as err:  # on every rank alike
-        if ens.root:
-            print(f"swe-sphere: {err}; the good output times are in {output}", file=sys.stderr)
-        return EXIT_BLOWUP
-    steps, loop = ens.step_count - first, ens.wall_time - before
-    for line in ens.drops:  # collective
-        if ens.root:
+
+def _ensemble_summary(sim, result, start: list, since: float) -> None:
+    """``run --members N``'s summary: wall time, each invariant's and error's range over the
+    members (``start`` their invariants at model day ``since``), the spread of h, the steps."""
+    scene, steps, loop = sim.scene, result.steps - result.first_step, result.loop_time
+    for line in sim.drops:  # collective
+        if sim.root:
             print(f"swe-sphere: {line}", file=sys.stderr)
     print("summary")
     print(
         f"  wall time   {loop:.2f} s for {steps} steps ({1e3 * loop / max(steps, 1):.2f} ms/step, "
-        f"{1e3 * loop / max(steps, 1) / ens.members:.3f} ms a member), setup {setup:.2f} s"
+        f"{1e3 * loop / max(steps, 1) / sim.members:.3f} ms a member), setup {result.setup_time:.2f} s"
     )
-    end, errors = ens.invariants(), ens.errors()  # collective
-    kept = [k for k in range(ens.members) if k not in ens.dropped]  # a member dropped has no state to score
-    since = f"since day {scene.day(first):g}"
-    invariant = start[0] if ens.case.h_is_depth else ["mass"]  # h a tracer (TC1): its mass alone, as a run's
+    end, errors = sim.invariants(), sim.errors()  # collective
+    kept = [k for k in range(sim.members) if k not in sim.dropped]  # a member dropped has no state to score
+    invariant = start[0] if sim.case.h_is_depth else ["mass"]  # h a tracer (TC1): its mass alone, as a run's
     for key in invariant if kept else ():
         change = [end[k][key] / start[k][key] - 1 for k in kept]
-        print(f"  {key:<21} relative change {min(change):+.3e} to {max(change):+.3e} {since}, over the members")
+        print(
+            f"  {key:<21} relative change {min(change):+.3e} to {max(change):+.3e} since day {since:g}, over the members"
+        )
     unscored = [key for key in errors[0] if kept and all(math.isnan(errors[k][key]) for k in kept)]
     for key in errors[0] if kept else ():
         values = [errors[k][key] for k in kept]
@@ -345,25 +305,25 @@ def _ensemble(args, scene, output: Path, device, comm) -> int:
             print(f"  {key:<21} {min(values):.3e} to {max(values):.3e} over the members (the run file's, by member)")
     if unscored:  # a reference's errors at a day it does not store
         print(f"  {'reference':<21} {_unscored(scene)}")
-    spread = ens.h_spread_rms()
+    spread = sim.h_spread_rms()
     print(f"  h spread    {spread:.4g} m (area-weighted RMS of the members' standard deviation at day {scene.days:g})")
-    if ens.control is not None:
-        print(f"  steps       {ens.control.summary()}")
-    print(f"  output      {output}")
-    return 0
+    if sim.control is not None:
+        print(f"  steps       {sim.control.summary()}")
+    print(f"  output      {result.output}")
 
 
-def _ensemble_header(args, ens, scene, output: Path, device) -> None:
+def _ensemble_header(args, sim, output: Path, device) -> None:
     """``run --members N``'s header (before the run): the scene, grid, terms, stepper (its
     precision and control), the members and how they step, a continuation's step, the Courant numbers, notes,
     the output and restart files."""
-    from ..ensemble.ensemble import POLICIES
+    from ..members.units import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
     from .report import control_line, courant_line, precision_line, print_notes, print_streams, terms_line
 
+    scene, ens = sim.scene, sim.ensemble
     gravity_waves = "pressure_gradient" in scene.terms
-    states = [x for k, x in enumerate(ens.states()) if k not in ens.dropped]  # a continued run's dropped: NaN
+    states = [x for k, x in enumerate(sim.states()) if k not in sim.dropped]  # a continued run's dropped: NaN
     courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
@@ -378,12 +338,13 @@ def _ensemble_header(args, ens, scene, output: Path, device) -> None:
     if ens.comm is not None:
         where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
     print(
-        f"ensemble    {ens.members} members {where}; initial states {ens.initial}; a blow-up: {POLICIES[ens.blow_up]}"
+        f"ensemble    {ens.members} members {where}; initial states {ens.initial_states}; "
+        f"a blow-up: {POLICIES[ens.blow_up]}"
     )
-    if ens.step_count:
-        print(f"continued   from {args.continue_from}, step {ens.step_count} (day {ens.day:g})")
+    if sim.step:
+        print(f"continued   from {args.continue_from}, step {sim.step} (day {sim.time:g})")
     if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
-        print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, ens.day, "nodes and members"))
+        print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, sim.time, "nodes and members"))
     print_notes(scene.notes, ens.root)
     if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
         print(
@@ -425,7 +386,10 @@ def _output_lock(output: Path, comm):
     return from_root(comm, lambda: HeldLock(output), OutputError) or contextlib.nullcontext()
 
 
-def _run(args, scene, output, device, comm) -> int:
+def _run(args, scene, members, output, device, comm) -> int:
+    """The run of ``command``, of one member or ``members``: built (or continued), its header,
+    the loop writing ``output`` (and its restart files), its summary; a blow-up keeps the file's
+    good times (exit ``EXIT_BLOWUP``)."""
     from tqdm import tqdm
 
     from ..core import mpi
@@ -438,15 +402,22 @@ def _run(args, scene, output, device, comm) -> int:
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
     if args.continue_from is None:
-        sim = Simulation(scene, device, progress=not args.no_progress, comm=comm, graphs=args.graphs)
+        kw = {"progress": not args.no_progress, "comm": comm, "graphs": args.graphs}
+        sim = Simulation(scene, device, **kw, **_member_options(args, members, scene))
     else:
-        sim = _continued(args, device, comm)
+        sim = _continued(args, device, comm, members)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
-    if args.restart_every is not None and args.continue_from is not None:  # a new run's: in ``command``
-        check_restart_interval(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
-        check_target(restart_path(output), args.overwrite)  # where the interval is the checkpoint's own
-    header(args, sim, output, device, comm)
+    if args.continue_from is not None:  # a continuation keeps its checkpoint's restart interval
+        args.restart_every = sim.restart_every if args.restart_every is None else args.restart_every
+        if args.restart_every is not None:  # a new run's: in ``command``
+            check_restart_interval(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
+            check_target(restart_path(output), args.overwrite)  # where the interval is the checkpoint's own
+    since, start = sim.time, sim.invariants() if members else None  # collective: the members' drift
+    if members:
+        _ensemble_header(args, sim, output, device)
+    else:
+        header(args, sim, output, device, comm)
     try:
         result = sim.run(
             output,
@@ -459,12 +430,16 @@ def _run(args, scene, output, device, comm) -> int:
             progress_lines=args.progress_lines,
         )
     except BlowUp as err:  # on every rank alike (the bad node is found over all of them)
-        result, blowup = None, f"swe-sphere: {err}; the last good state is in {output}"
+        kept = "the good output times are" if members else "the last good state is"
+        result, blowup = None, f"swe-sphere: {err}; {kept} in {output}"
     if args.console:
         hold_signals()  # the output is closed: a signal from now on is answered as the process ends
     if result is None:
         if sim.root:
             print(blowup, file=sys.stderr)
         return EXIT_BLOWUP
-    summary(result, sim)
+    if members:
+        _ensemble_summary(sim, result, start, since)
+    else:
+        summary(result, sim)
     return 0

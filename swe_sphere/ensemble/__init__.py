@@ -1,12 +1,11 @@
-"""Ensembles: N members of one scene advanced together (``ensemble.Ensemble``): an explicit
-stepper's in the same launches, on N disjoint copies of the grid's elements
-(``members.MemberGrid``); any other's, or members whose g or ν differ, each on a model of its
-own (``units``).
+"""Ensembles: ``Ensemble``, the deprecated name of a ``Simulation`` of members
+(``Simulation(scene, members=N, initial=...)``, issue 116: one driver), and the members' starts
+and grid re-exported from ``members`` where they were.
 
 May import: every layer below (``simulation`` down to ``kernels``)."""
 
+from ..members.grid import MemberGrid
+from ..members.initial import MemberFile, Perturbation, Variants
 from .ensemble import Ensemble
-from .initial import MemberFile, Perturbation, Variants
-from .members import MemberGrid
 
 __all__ = ["Ensemble", "MemberFile", "MemberGrid", "Perturbation", "Variants"]

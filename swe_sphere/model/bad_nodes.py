@@ -22,6 +22,13 @@ class BadNodes:
         self.model = m = model
         self.bad = wp.zeros(max(1, m.threads), dtype=wp.int32, device=m.device)
         self.watched = wp.full(max(1, m.threads), m.N, dtype=wp.int32, device=m.device)
+        self.depth = "pressure_gradient" in m.terms  # h a depth: h <= 0 is bad
+
+    def mask(self, x: np.ndarray) -> np.ndarray:
+        """(..., N) bool: the nodes of host states x (..., 3, N) that ``first`` and ``watch`` find
+        bad, by the same rule (an ensemble's members named in a blow-up's line)."""
+        bad = ~np.isfinite(x).all(axis=-2)
+        return bad | (x[..., 2, :] <= 0) if self.depth else bad
 
     def first(self, x: wp.array2d) -> int | None:
         """Whole-grid element-local index of the first bad node of x over all ranks;
@@ -64,7 +71,7 @@ class BadNodes:
         """Launch ``blas.first_bad_node`` on x into the per-thread slots of ``first``
         (an atomic minimum: the same index whatever order the threads run in)."""
         m = self.model
-        check_depth = 1 if "pressure_gradient" in m.terms else 0
+        check_depth = 1 if self.depth else 0
         slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
         m.launches.replay(
             (name, x.ptr),

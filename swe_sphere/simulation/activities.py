@@ -4,8 +4,7 @@ object with ``due(step) -> bool`` and ``next_after(step) -> int | None``; under 
 ``schedules.AtDays``, due at days the steps land on) and a call
 ``activity(sim)``, made after each step the schedule names once the state there is known to be
 good (``sim.step`` is that step). A run's own activities (``writers.RunFiles``,
-``writers.Checkpointer``, ``Log``) read the run state and parts they were made with, not ``sim``;
-an ensemble's are called with the ``Ensemble``.
+``writers.Checkpointer``, ``Log``) read the run state and parts they were made with, not ``sim``.
 
 ``Simulation.activities`` holds them by name, called in order: during ``run`` the run file and its
 streams (``"run_file"``, ``writers.RunFiles``), the restart file (``"checkpointer"``,
@@ -39,7 +38,7 @@ def is_due(schedule: Schedule, run) -> bool:
 
 def add_callback(activities: dict, fn: Callable, schedule: Schedule, name: str | None = None) -> None:
     """``fn(owner)`` at the steps of ``schedule`` (a ``Callback``) in ``activities`` under ``name``
-    (None: the first free "callback N"): ``Simulation.add_callback``'s and ``Ensemble.add_callback``'s."""
+    (None: the first free "callback N"): ``Simulation.add_callback``'s."""
     if name is None:
         name = next(f"callback {k}" for k in itertools.count(1) if f"callback {k}" not in activities)
     activities[name] = Callback(fn, schedule)
@@ -47,7 +46,7 @@ def add_callback(activities: dict, fn: Callable, schedule: Schedule, name: str |
 
 def call_due(activities: dict, run, owner) -> None:
     """Call each of ``activities`` (in order) due at ``run``'s step (``is_due``) with ``owner``
-    (the ``Simulation`` or ``Ensemble`` whose run it is)."""
+    (the ``Simulation`` whose run it is)."""
     for activity in list(activities.values()):
         if is_due(activity.schedule, run):
             activity(owner)

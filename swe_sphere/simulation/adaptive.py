@@ -410,10 +410,10 @@ class Tries(Rewind):
 
 
 def steered(control: StepControl, last_day: float, activities: dict) -> ControlledDt:
-    """The Δt policy of a run (``loop.run_steps``: a ``Simulation``'s or an ``Ensemble``'s) under
+    """The Δt policy of a run (``loop.run_steps``: a ``Simulation``'s, of one member or many) under
     ``control`` (a ``StepControl``): accepted steps (``integrator.ControlledDt``) to each day an
-    ``AtDays`` activity of ``activities`` is due at (output and restart times) and ``last_day`` in
-    turn, each landed on exactly, a try launched ahead only where no activity of whole steps
+    ``AtDays`` activity of ``activities`` is due at (output and restart times) up to ``last_day``
+    and ``last_day`` in turn, each landed on exactly, a try launched ahead only where no activity of whole steps
     (``EverySteps``, ``AtSteps``: they read x) is due after the step."""
     days = {float(last_day)}
     counted = []  # the schedules of whole steps: due after a step, they read x
@@ -422,5 +422,5 @@ def steered(control: StepControl, last_day: float, activities: dict) -> Controll
             days.update(activity.schedule.days)
         else:
             counted.append(activity.schedule)
-    ahead = sorted(d for d in days if d * DAY > control.t)
+    ahead = sorted(d for d in days if control.t < d * DAY and d <= last_day)  # not past the run's last day
     return ControlledDt(control, ahead, lambda j: not any(s.due(j + 1) for s in counted))

@@ -10,7 +10,7 @@ import dataclasses
 
 from ..config.parts import scene_stepper
 from ..config.scene import with_days
-from ..core.arguments import callable_argument, got
+from ..core.arguments import callable_argument, got, number_argument
 from ..core.clock import is_interval
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, SceneError
@@ -37,9 +37,9 @@ class Driven:
         that Δt is less than half the present one (an interval of odd decimals: give a dt, or an
         interval of whole steps)."""
         s = self.scene
-        if self.step != 0 or not is_interval(every):
+        if self.core.step != 0 or not is_interval(every):
             raise SceneError(
-                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.step})"
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.core.step})"
             )
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
@@ -75,7 +75,7 @@ class Driven:
     def _steps_in(self, days: float, what: str) -> int:
         """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
         fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-        if self._own_dt and self.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
+        if self._own_dt and self.core.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
             self.fit_dt(days, what)
         return steps_of(self.scene, days, f"the interval {what}")
 
@@ -99,12 +99,15 @@ class Driven:
         """The schedule of an activity (``activities``) due after every step that is a
         multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
         step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
-        caller has. ValueError for an interval that is not whole steps, or not exactly
-        one of the two."""
+        caller has (under step control, of the accepted steps). ``ArgumentError`` (a ValueError)
+        for not exactly one of the two, or ``days`` under step control; ``SceneError`` for an
+        interval that is not whole steps."""
         if (days is None) == (steps is None):
-            raise ValueError("an interval needs exactly one of every_days, every_steps")
+            raise ArgumentError("an interval needs exactly one of every_steps, every_days")
         if steps is not None and not (isinstance(steps, int) and steps >= 1):
-            raise ValueError(f"every_steps must be an integer >= 1 (got {steps!r})")
+            raise ArgumentError(f"every_steps must be an integer >= 1 (got {steps!r})")
+        if days is not None and self.control is not None:
+            raise ArgumentError("every_days: under step control the steps are the controller's (give every_steps)")
         return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
 
     def add_callback(
@@ -123,13 +126,13 @@ class Driven:
 
     def advance(self, days: float) -> RunResult:
         """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
-        signals and callbacks as there; no output file). Past the scene's end the run
-        is lengthened (``config.with_days``).
+        signals and callbacks as there; no output file); under step control the steps land
+        on the day reached. Past the scene's end the run is lengthened (``config.with_days``).
 
         Parameters
         ----------
         days : float
-            Model days, a whole number of steps.
+            Model days, a whole number of steps at a fixed Δt.
 
         Returns
         -------
@@ -139,14 +142,17 @@ class Driven:
         Raises
         ------
         ValueError
-            ``days`` is not a whole number of steps.
-        ArgumentError
-            Under step control (``[time] control``): the controller chooses the steps; ``run``.
+            ``days`` is not a whole number of steps (at a fixed Δt), or not a number ≥ 0.
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """
-        self._fixed_dt("Simulation.advance")
-        target = self.step + self._steps_in(days, "days")
+        number_argument("days", days, "days", low=0.0, error=SceneError)
+        if self.control is not None:  # Δt the controller's, landing on the day reached
+            end = self.time + days
+            if end > self.scene.days:
+                self.scene = with_days(self.scene, end, "the scene's")
+            return self.run(None, until_day=end)
+        target = self.core.step + (self._steps_in(days, "days") if days else 0)
         if target > self.scene.nsteps:
             self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
         return self.run(None, until_step=target)
@@ -183,7 +189,7 @@ class Driven:
         """
         self._fixed_dt("Simulation.steps")
         per = self._steps_in(every, "every")
-        while (target := (self.step // per + 1) * per) <= self.scene.nsteps:
+        while (target := (self.core.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
             yield self.time
 
@@ -213,7 +219,7 @@ class Driven:
         if not self.root:
             return None
         fields = {k: getattr(whole, k) for k in OUTPUT_FIELDS}
-        attrs = {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.step}
+        attrs = {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.core.step}
         ds = node_dataset(self.grid, self.hs, self.time, fields, attrs)
         if remap is None:
             return ds

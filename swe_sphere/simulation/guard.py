@@ -12,9 +12,9 @@ from .schedules import next_multiple
 
 
 class RunObserver(Observer):
-    """A run's hooks on its integrator (``Simulation.core``, ``Ensemble.core``) to ``stop_step``:
+    """A run's hooks on its integrator (``Simulation.core``) to ``stop_step``:
     ``run`` its ``run_state.RunState``, ``activities`` its activities by name (the dict itself,
-    read as it is at each step), each called with ``caller`` (the ``Simulation`` or ``Ensemble``:
+    read as it is at each step), each called with ``caller`` (the ``Simulation``:
     what a user's callback is handed, read by nothing here), ``ledger``
     its ``summary.Ledger`` (the counts, kept at a block's start and put back where the block is
     taken again), ``signals`` a ``StopSignals``; after good steps the activities due and the

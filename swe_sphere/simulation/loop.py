@@ -1,4 +1,4 @@
-"""The run loop of ``Simulation.run`` and ``Ensemble.run`` alike: the run wrapper (``integrate``:
+"""The run loop of ``Simulation.run``, of one member or many: the run wrapper (``integrate``:
 its files recorded, signals, progress bar, a stopped run's files closed) and its outcome
 (``outcome``), its steps by the integrator (``run_steps``, at a fixed or a controlled Δt) under
 the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``); a
@@ -16,7 +16,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
-from ..core.errors import BlowUp, OutputError, SceneError
+from ..core.errors import BlowUp, OutputError, SceneError, StepFailure
 from ..core.interrupts import StopSignals
 from ..integrator import Stop, trouble_line
 from ..io.output_files import check_distinct, check_target
@@ -25,7 +25,7 @@ from .adaptive import Tries, steered
 from .guard import RunObserver
 from .schedules import EverySteps
 from .summary import Ledger, interrupted
-from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs
+from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs, scene_attrs
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
@@ -71,7 +71,7 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
 
 
 def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
-    """The steps of a run (a ``Simulation``'s or an ``Ensemble``'s) by its integrator ``core`` to
+    """The steps of a run (a ``Simulation``'s, of one member or many) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
     own policy's at a fixed Δt; under ``control`` (an ``adaptive.StepControl``) its policy
     (``adaptive.steered``: each accepted step a block, landed on the days the ``activities`` are
@@ -100,7 +100,7 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
 
 
 def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **how) -> Stop:
-    """The run wrapper of ``Simulation.run`` and ``Ensemble.run``: ``run`` (a
+    """The run wrapper of ``Simulation.run``: ``run`` (a
     ``run_state.RunState``) stepped by ``blocks(signals, bar)`` (``run_steps``; a ``Stop``) with
     its files (``writers.RunFiles``, ``Checkpointer``) under ``signals`` (a ``StopSignals``), one
     BLAS thread, ``during`` (a context: the run's own activities) and a progress bar (and
@@ -164,49 +164,73 @@ class Looping:
     activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
     (``compile_timer``)."""
 
-    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step: int | None, lines=None) -> Stop:
-        """The run's steps to ``until_step`` (None: the scene's end) by ``run_steps`` under the
-        run's guard (``guard.RunObserver``: the activities due after each good step, progress on
-        ``bar`` and rank 0's ``lines``); ``until_step`` refused under step control (ValueError).
-        Returns why the loop stopped (``Stop``)."""
+    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step, lines=None, until_day=None) -> Stop:
+        """The run's steps to ``until_step`` (None: the scene's end; under step control to the day
+        ``until_day``) by ``run_steps`` under the run's guard (``guard.RunObserver``: the activities
+        due after each good step, progress on ``bar`` and rank 0's ``lines``; members dropped
+        where they blow up under ``blow_up`` "drop"); ``until_step`` refused under step control
+        (ValueError). Returns why the loop stopped (``Stop``)."""
         if self.control is not None and until_step is not None:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
         lines = lines if self.root else None
-        observer = RunObserver(
-            self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines
-        )
+        drop = None if self.ensemble is None else lambda bad, step: self.ensemble.drop(bad, step, self.scene.day(step))
+        parts = (self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines)
+        observer = RunObserver(*parts, dropped=drop)
+        last_day = self.scene.days if until_day is None else until_day
+        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._describe)
 
-        def describe(bad: tuple) -> str:
+    def _describe(self, bad: tuple) -> str:
+        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
+        ``integrator.Stop``: a single run's (``trouble_line``), or the members bad there (their
+        states those of that step; ``StepFailure`` for a failed solve)."""
+        if self.ensemble is None:
             day = self.time if self.control is not None else self.scene.day(bad[0])
             return trouble_line(self.model, self.x, bad, day)
-
-        return run_steps(self.core, self.control, self.scene.days, self.activities, observer, stop_step, describe)
+        step, trouble, detail = bad
+        if trouble == "failure":
+            raise StepFailure(detail)
+        self.core.step = step
+        return self.ensemble.blow_up_line(step, self.time)
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
-        the start's gathered fields and its Courant numbers. ValueError for a user's
-        activity under a name the run gives its own."""
-        run = self.run_state
-        ckp = Checkpointer(
-            run, self.write_checkpoint, self.topology.bcast, self.root, output, restart_every, restart_file, overwrite
-        )
-        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output)
+        the start's gathered fields, its Courant numbers (a single run's) and its members'
+        diagnostics (None for a single run). ValueError for a user's activity under a name the
+        run gives its own."""
+        run, m = self.run_state, self.ensemble
+        bcast = self.topology.bcast if m is None else m.bcast
+        ckp = Checkpointer(run, self.write_checkpoint, bcast, self.root, output, restart_every, restart_file, overwrite)
+        series = None if m is None else ("steps", "wall_time")
+        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output, series)
         check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
-        courant = self.courant(start)
-        if output is not None and self.root:
+        if m is None:
+            courant, first, more = self.courant(start), None, {}
             attrs = run_attrs(run, self.case, self.dfi, self.device, self.topology.comm.size, history, courant)
-            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify)
-        return files, ckp, start, courant
+        else:  # the members' invariants and errors, each (time, member) in the files
+            courant, first = {}, self.diagnostics.diagnose(run.seconds(self.core.step), whole=start)
+            files.member_series = tuple(first)
+            more = {"members": m.members, "member_series": files.member_series}
+            attrs = {
+                **scene_attrs(run.scene, "ensemble", history, f"swe_sphere.{type(self).__name__}.run"),
+                **self.stepper.attrs(),
+                "device": str(self.model.topology.device),
+                **m.attrs(),
+                **({"continued_from_day": self.time} if self.core.step else {}),
+            }
+        if output is not None and self.root:
+            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
+        return files, ckp, start, courant, first
 
     def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
         """The run's own activities while the loop runs (``own_activities``, the log after the
-        user's), the stepper's solver counters read with the bad-state check."""
+        user's), a single run's stepper's solver counters read with the bad-state check."""
         every = self.scene.log_every_steps
-        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every else {}
-        return own_activities(self.activities, files, ckp, self.stepper, **more)
+        one = self.ensemble is None
+        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every and one else {}
+        return own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
 
 
 def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
@@ -225,7 +249,7 @@ def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: 
 
 @contextlib.contextmanager
 def own_activities(activities: dict, files: RunFiles, ckp: Checkpointer, deferred=None, **more):
-    """A run's own activities in ``activities`` (a ``Simulation``'s or an ``Ensemble``'s, changed
+    """A run's own activities in ``activities`` (a ``Simulation``'s, changed
     in place) while its loop runs: the run file and checkpointer before the user's, ``more``
     after; the stepper ``deferred``'s solver counters read with the bad-state check
     (``Stepper.deferred``). The user's alone again after."""

@@ -1,6 +1,6 @@
 """A run's progress as a line every so many seconds of wall time, for a log where no bar is
 drawn (a pipe, ``nohup``, CI: stderr not a terminal), as HOMME, Oceananigans and SpeedyWeather
-print theirs: ``ProgressLines``, handed to ``Simulation.run`` and ``Ensemble.run``."""
+print theirs: ``ProgressLines``, handed to ``Simulation.run``."""
 
 from __future__ import annotations
 

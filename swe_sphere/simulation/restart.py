@@ -1,7 +1,7 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
 written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), and ``Restarts``, the methods
-``restore``, ``restore_history`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
+``restore_history``, ``restore_members`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from .build import ON_ROOT
 
 
 def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool = False) -> tuple:
-    """What ``Simulation.from_checkpoint`` (and, ``members``, ``Ensemble.from_checkpoint``) builds
+    """What ``Simulation.from_checkpoint`` (``members``: an ensemble's file) builds
     from: (the checkpoint read, the scene, the constructor's ``start`` and ``initial_diagnostics``,
     and whether it continues the file rather than branch from it: its stepper's history then
     restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
@@ -26,11 +26,11 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
         path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
         ck = ckpt.read(checkpoint) if members else ckpt.read_on_root(checkpoint, comm)
     if members and ck.members is None:
-        raise CheckpointError(f"{ck.path}: a single run's restart file (continue it with Simulation.from_checkpoint)")
+        raise CheckpointError(f"{ck.path}: a single run's restart file (continue it with members=False)")
     if not members and ck.members is not None:
         raise CheckpointError(
             f"{ck.path or 'the checkpoint'} is an ensemble's restart file ({ck.members} members): continue it "
-            "with swe_sphere.Ensemble.from_checkpoint (swe-sphere run --continue does)"
+            "with Simulation.from_checkpoint(..., members=True) (swe-sphere run --continue does)"
         )
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
     if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
@@ -44,34 +44,36 @@ class Restarts:
     written (its attributes the simulation's: ``x``, ``stepper``, ``step``, ``counters``,
     ``initial``, ``control``, ``topology``, ...)."""
 
-    def restore(self, ck: ckpt.Checkpoint) -> None:
-        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint."""
-        try:
-            # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            x = self.topology.distribute(ck.x, 3, "checkpoint state")
-        except ValueError as err:
-            raise CheckpointError(str(err)) from None
-        self.x.assign(x)
-        self.restore_history(ck)
-
     def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """``restore`` but the state (already ``ck.x``)."""
+        """The stepper history, counters, step control and t = 0 invariants of a checkpoint (the state
+        is already ``ck.x``)."""
         restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
         self.initial = ck.initial
+
+    def restore_members(self, ck: ckpt.Checkpoint) -> None:
+        """An ensemble's ``restore_history``: every member's state and stepper history (``Members.restore``)."""
+        restore_run(self.run_state, ck, lambda: self.ensemble.restore(ck))
 
     def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid
         fields, gathered from every rank (call on all), written by rank 0;
-        ``restart_every`` (days) recorded for a continuation to keep."""
+        ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
+        state and its stepper's history, the member count, the layout and the variants."""
+        kept = {"overwrite": overwrite, "restart_every": restart_every}
+        if self.ensemble is not None:
+            parts = self.ensemble.restart_parts()
+            if parts is None:
+                return Path(path)
+            x, state, initial, grid = parts
+            return write_restart(path, self.run_state, x, state, initial, grid, members=self.members, **kept)
         x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
         if not self.root:
             return Path(path)
-        kept = {"overwrite": overwrite, "restart_every": restart_every}
         return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
 
 
 def restore_run(run, ck: ckpt.Checkpoint, restore) -> None:
-    """Continue ``run`` (a ``run_state.RunState``: a ``Simulation``'s or an ``Ensemble``'s) from
+    """Continue ``run`` (a ``run_state.RunState``: a ``Simulation``'s) from
     the checkpoint ``ck``: its steppers' histories (``restore()``; ``CheckpointError`` where they
     do not fit), then its step, counters and step control, as if never stopped."""
     try:

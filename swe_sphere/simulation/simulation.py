@@ -21,12 +21,14 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
-from ..integrator import Integrator, Unit, forwarded
+from ..integrator import FixedDt, Integrator, Unit, forwarded
+from ..members.units import member_step
 from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
 from .drive import Driven
 from .loop import Looping, check_run_arguments, compile_timer, integrate, outcome
+from .members import Members, member_starts
 from .restart import Restarts, continued
 from .run_state import RunState
 from .schedules import at_its_end
@@ -43,12 +45,18 @@ def _delegated(method, owner):
 
 
 class Simulation(Driven, Restarts, Looping):
-    """Build the grid, case, model and stepper of a scene; ``run`` integrates it.
+    """Build the grid, case, model and stepper of a scene, of one member or N; ``run`` integrates it.
 
     A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
     days=2)``. Python drives it step by step with ``advance``, ``steps``, ``state`` and
     ``add_callback``; ``run`` integrates to the scene's end; ``from_checkpoint``
-    continues a restart file instead of starting at t = 0.
+    continues a restart file instead of starting at t = 0. With ``members`` (or a scene's
+    [ensemble]) it steps N members of the scene, member k with the bits of the single run from
+    its initial state (issue 85): in the same launches on N copies of the grid, or each on a
+    model of its own (``layout``), its diagnostics and run files on (N, n) fields
+    (``members.Members``); the same ``run``, ``advance``, ``add_callback``, ``from_checkpoint`` and
+    ``write_checkpoint``, and ``states``, ``set_states``, ``invariants``, ``errors`` and
+    ``h_spread_rms`` of every member.
 
     Parameters
     ----------
@@ -57,27 +65,44 @@ class Simulation(Driven, Restarts, Looping):
         (``config.resolve_scene``).
     device : {"cpu", "cuda"}, optional
         Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present; ``backend.pick_device``).
+    members : int ≥ 1, optional
+        N, the members (None: the scene's [ensemble] ``members`` where it has one, else one run).
+        Any stepper, without a digital filter; Δt fixed, or under ``time.control`` the same for
+        every member (in the same launches, on one rank).
     progress : bool
         A tqdm bar (rank 0, stderr a terminal).
     comm : mpi4py communicator, optional
         Run one simulation over its ranks: each steps its part of the elements
         (``topology.Topology``), rank 0 writes the files; explicit steppers give the
-        same bits on any number of ranks. None: this process alone.
+        same bits on any number of ranks. Members: rank r steps the r-th of R contiguous
+        shares of them (at least one a rank), the states gathered on every rank. None: this
+        process alone.
     start : ndarray, shape (3, nnodes), optional
         A whole-grid state (u, v in m s⁻¹, h in m) to start from instead of the case's
         initial state and the scene's initialization (a restart's, or a digital-filter
         start made once for many runs, as a sweep's).
-    initial : callable, optional
+    initial : callable, or with members None, array (N, 3, n), Perturbation, MemberFile or Variants
         ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out), the state at
         t = 0 instead of the case's, which still gives fcor, hs and the truth errors
         are taken against (``initial_state.from_function``); the scene's digital
-        filter, if any, then runs on it. Not with ``start``.
+        filter, if any, then runs on it. Not with ``start``. Members: None, the case's for
+        every member (or the scene's [ensemble] ``perturbation`` and ``seed``); an array of
+        rows u, v (m s⁻¹), h (m) on the grid's n element-local nodes; a ``Perturbation`` of the
+        case's; a ``MemberFile`` (an ensemble's run file); ``Variants`` (each member's own case,
+        Ω, g or ν; ``members.initial``).
     initial_diagnostics : dict, optional
         The t = 0 diagnostics that relative changes are taken against, the same on
         every rank (a checkpoint's, when continuing); None: the start state's.
     graphs : {"auto", "on", "off"} or bool, optional
         Steps replayed as captured graphs (see Notes); default the environment's
         ``SWE_SPHERE_GRAPHS``, else "auto". Also an attribute to set.
+    layout : {None, "shared", "in_turn"}, optional
+        Members: in the same launches ("shared", where they can) or each on a model of its own
+        (``members.units``' module doc); None: "shared" on CUDA, "in_turn" on a CPU.
+    blow_up : {"stop", "drop"}
+        Members: a blow-up stops every member, or drops the member and goes on ("in_turn").
+    per_element, threads : bool or None, int or None
+        Members: the models' kernel layout and CPU threads (``ShallowWater``'s; None: the device's).
     **overrides
         As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``precision``
         and any scene value by its table.
@@ -103,13 +128,18 @@ class Simulation(Driven, Restarts, Looping):
         ``stability_warning`` and ``largest_dt_within_limit`` are also the simulation's.
     backend : Backend
         The device's choices (``core.backend``), decided once; ``device`` its name.
+    members : int
+        N (1 for a single run); ``ensemble``: the members' part (``members.Members``: ``held``,
+        ``layout``, ``units``, ``copies``, ``alike``, ``initial_states``, …), None for a single run.
 
     Raises
     ------
     SceneError
-        A bad scene, override, or ``initial`` state (wrong shape, non-finite, h <= 0).
+        A bad scene, override, or ``initial`` state (wrong shape, non-finite, h <= 0); a function
+        ``initial`` for members.
     ValueError
-        ``initial`` not callable or given with ``start``; an unknown ``graphs`` mode.
+        ``initial`` not callable or given with ``start``; an unknown ``graphs`` mode; members:
+        ``ArgumentError`` naming ``members``, ``initial`` (the member), ``layout`` or ``blow_up``.
     ResourceError
         Too little memory for the grid.
 
@@ -129,18 +159,26 @@ class Simulation(Driven, Restarts, Looping):
     """
 
     inputs: tuple = ()
+    _of_members = False  # a run of members even where neither ``members`` nor the scene names them (refused)
+    restart_every: float | None = None  # days: a continuation's, its checkpoint's (``from_checkpoint``)
+    ensemble: Members | None = None  # the members' part (``members.Members``); None: one run
 
     def __init__(
         self,
         scene,
         device: str | None = None,
         *,
+        members: int | None = None,
         progress: bool = True,
         comm=None,
         start: np.ndarray | None = None,
         initial=None,
         initial_diagnostics: dict | None = None,
         graphs: str | bool | None = None,
+        layout: str | None = None,
+        blow_up: str = "stop",
+        per_element: bool | None = None,
+        threads: int | None = None,
         **overrides,
     ):
         progress = flag_argument("progress", progress, SceneError)
@@ -150,7 +188,13 @@ class Simulation(Driven, Restarts, Looping):
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
-        if initial is not None and (start is not None or not callable(initial)):
+        many = self._of_members or members is not None or scene.ensemble is not None
+        if many and (callable(initial) or start is not None):
+            raise SceneError(
+                "initial: an [ensemble]'s members start from its perturbation, or an array, a Perturbation, a "
+                "MemberFile or Variants (not a function, nor a start)"
+            )
+        if initial is not None and not many and (start is not None or not callable(initial)):
             raise ArgumentError(
                 f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"
             )
@@ -161,40 +205,77 @@ class Simulation(Driven, Restarts, Looping):
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
+        self.backend, self.device, self.progress, self.check_every = (
+            backend,
+            backend.device,
+            progress,
+            CHECK_EVERY_STEPS,
+        )
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            self.backend, self.device = backend, backend.device
-            # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
-            # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
-            b: Built = build(scene, backend, progress, comm, start, initial)
-            self.case, self.topology, self.root, self.progress = b.case, b.topology, b.root, b.progress
-            self.grid, self.model, self.fcor = b.grid, b.model, b.fcor
-            self.hs, self.scorer, self.dfi = b.hs, b.scorer, b.dfi
-            # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
-            self.core = Integrator([Unit.of(b.model, b.stepper, b.start[None], backend, graphs)])
-            # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
-            self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
-            self.g, self.check_every = self.model.g, CHECK_EVERY_STEPS
-            parts = (self.model, self.topology, self.grid, self.case, self.scorer, self.hs, self.fcor, self.root)
-            self.diagnostics = StateDiagnostics(self.run_state, *parts)
-            # the step control made after the start's diagnostics: their Courant numbers at the scene's dt
-            if initial_diagnostics is None:
-                self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
-            # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
-            if scene.control is not None:
-                self.control = StepControl(scene.control, self.core.units[0], scene.start_day)
+            if many:
+                parts = (scene, members, initial, backend, comm, graphs, layout, blow_up)
+                self._build_members(*parts, per_element=per_element, threads=threads)
+            else:
+                self._build_one(scene, backend, progress, comm, start, initial, initial_diagnostics, graphs)
             self.counters["iterations"].update(dict.fromkeys(self.stepper.solvers, 0))
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
+
+    def _build_one(self, scene, backend, progress, comm, start, initial, initial_diagnostics, graphs) -> None:
+        """A single run's parts (``build``), on this rank's elements."""
+        # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
+        # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
+        b: Built = build(scene, backend, progress, comm, start, initial)
+        self.case, self.topology, self.root, self.progress = b.case, b.topology, b.root, b.progress
+        self.grid, self.model, self.fcor = b.grid, b.model, b.fcor
+        self.hs, self.scorer, self.dfi = b.hs, b.scorer, b.dfi
+        # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
+        self.core = Integrator([Unit.of(b.model, b.stepper, b.start[None], backend, graphs)])
+        # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
+        self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
+        self.g, self.members = self.model.g, 1
+        parts = (self.model, self.topology, self.grid, self.case, self.scorer, self.hs, self.fcor, self.root)
+        self.diagnostics = StateDiagnostics(self.run_state, *parts)
+        # the step control made after the start's diagnostics: their Courant numbers at the scene's dt
+        if initial_diagnostics is None:
+            self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
+        # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
+        if scene.control is not None:
+            self.control = StepControl(scene.control, self.core.units[0], scene.start_day)
+
+    def _build_members(self, scene, members, initial, backend, comm, graphs, layout, blow_up, **options) -> None:
+        """N members' parts (``members.Members``): their units, over the ranks of ``comm`` by member."""
+        m = self.ensemble = self.diagnostics = Members(
+            scene, members, initial, backend, comm, graphs, layout, blow_up, **options
+        )
+        self.members, self.case, self.grid, self.root, self.dfi = m.members, m.case, m.grid, m.root, None
+        self.progress = self.progress and m.root
+        self.model = m.units[0].model
+        self.topology, self.hs = self.model.topology, m.member(m.hs, 0)
+        # the one step loop over the units: a block watched, a checked step plain (``member_step``)
+        self.core = Integrator(m.units, FixedDt(member_step), anywhere=m.anywhere, drop=blow_up == "drop", lone=False)
+        self.core.out = m.out  # the units dropped
+        control = None
+        if scene.control is not None:  # one Δt for every member: in the same launches, on one rank
+            if m.layout != "shared" or m.comm is not None:
+                where = "over MPI ranks" if m.comm is not None else "each on a model of its own"
+                raise ArgumentError(
+                    f"scene: its dt is controlled (time.control = {scene.control.mode!r}), which an ensemble takes "
+                    "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
+                    f"blow_up 'stop'), not {where}"
+                )
+            control = StepControl(scene.control, m.units[0], scene.start_day)
+        self.run_state = RunState(self.core, scene, control)
 
     # -- restarts and branches (``restart.Restarts``); driven from Python: ``drive.Driven`` --
     @classmethod
     def from_checkpoint(
         cls,
         checkpoint,
-        device: str,
+        device: str | None = None,
         *,
         days: float | None = None,
         stepper: str | None = None,
@@ -202,6 +283,9 @@ class Simulation(Driven, Restarts, Looping):
         progress: bool = True,
         comm=None,
         graphs: str | bool | None = None,
+        members: bool = False,
+        per_element: bool | None = None,
+        threads: int | None = None,
     ):
         """A simulation that continues a restart file, bitwise as if never stopped.
 
@@ -209,13 +293,14 @@ class Simulation(Driven, Restarts, Looping):
         (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
         history dropped (multistep steppers start as at t = 0), its counters from zero
         and its invariants' changes against that state, steps counted from the
-        checkpoint's day.
+        checkpoint's day (a single run's file alone).
 
         Parameters
         ----------
         checkpoint : str, path or checkpoint.Checkpoint
-            The restart file (read on rank 0 only, ``checkpoint.read_on_root``).
-        device : {"cpu", "cuda"}
+            The restart file (read on rank 0 only, ``checkpoint.read_on_root``; an ensemble's on
+            every rank, each stepping its members).
+        device : {"cpu", "cuda"}, optional
             Warp device.
         days : float, optional
             The new last model day, from t = 0 (default: the checkpointed scene's).
@@ -223,26 +308,38 @@ class Simulation(Driven, Restarts, Looping):
             Another stepper: a branch.
         dt : float, optional
             Another time step (s): a branch.
-        progress, comm, graphs
+        members : bool
+            The file is an ensemble's (its members, layout, blow-up policy and variants the
+            file's); False: a single run's.
+        progress, comm, graphs, per_element, threads
             As for the constructor.
 
         Returns
         -------
         Simulation
-            At the checkpoint's step.
+            At the checkpoint's step, its restart interval (``restart_every``) the file's.
 
         Raises
         ------
         CheckpointError
             ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
-            or a ``days`` before its step.
+            one of the other kind (``members``), or a ``days`` before its step.
         SceneError
             A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
         """
-        ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm)
-        sim = cls(scene, device, progress=progress, comm=comm, start=start, initial_diagnostics=initial, graphs=graphs)
-        if whole:  # a continuation: the stepper's history, the counters and the step control as they were
-            sim.restore_history(ck)
+        ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm, members=members)
+        kw = {"progress": progress, "comm": comm, "graphs": graphs}
+        if members:
+            states, layout, policy = member_starts(ck)
+            both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
+            sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
+            sim.restore_members(ck)
+        else:
+            sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
+            if whole:  # a continuation: the stepper's history, the counters and the step control as they were
+                sim.restore_history(ck)
+        if whole:
+            sim.restart_every = ck.restart_every  # the interval it wrote restart files at, kept
         if not isinstance(checkpoint, Checkpoint):
             sim.inputs = (Path(checkpoint),)
         return sim
@@ -268,15 +365,71 @@ class Simulation(Driven, Restarts, Looping):
     x = forwarded("core.units.0.x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
     last_good = forwarded("core.units.0.start", "The state (3, N) at the start of the step or block in progress.")
     graphs = forwarded("core.units.0.graphed.mode", 'Graph mode: "auto", "on", "off" (or True, False; see Notes).')
-    graphs_kept = forwarded(
-        "core.units.0.graphed.kept", "Step graphs checked and kept (``GraphedSteps.kept``); 0 where steps run plain."
-    )
+
+    @property
+    def graphs_kept(self) -> int:
+        """Step graphs checked and kept (``GraphedSteps.kept``, over the units); 0 where steps run plain."""
+        return sum(u.graphed.kept for u in self.core.units)
+
     graphs_checked = forwarded(
         "core.units.0.graphed.checked", "Step graphs compared bit for bit with plain ones (``GraphedSteps``).", False
     )
 
     # a step of the stepper, not watched nor counted: a controlled run's tries (``adaptive.StepControl``)
     try_step = _delegated(Unit.try_step, lambda sim: sim.core.units[0])
+
+    # -- the members' states and diagnostics on (N, n) (``members.Members``; one run: N = 1)
+    def states(self) -> np.ndarray:
+        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
+        nodes (a dropped member's NaN), on every rank (collective)."""
+        if self.ensemble is not None:
+            return self.ensemble.states()
+        return self.topology.bcast(self.topology.gather(self.x.numpy()))[None]
+
+    def set_states(self, states) -> None:
+        """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
+        v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
+        members' (a dropped member's, NaN in ``states()``, left out). The steppers go on from them
+        as from their own (a multistep stepper's earlier states and a solver's guesses kept).
+        ``ArgumentError`` as for an ``initial`` array, nothing set; a run of one member without
+        ``members``: ``ArgumentError`` (its state is ``x``)."""
+        self._members_only("set_states").set_states(states)
+
+    def invariants(self) -> list[dict[str, float]]:
+        """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
+        (``model.diagnostics.invariants`` on the one grid: the bits of the single run's; collective)."""
+        m = self._members_only("invariants")
+        return m.everyone(m.invariants_of(m.gather_fields().held))
+
+    def errors(self) -> list[dict[str, float]]:
+        """Each member's errors now against the case's truth, as a single run's file has them
+        (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
+        the wind against an exact solution, or against the scene's spectral reference where
+        it stores this day); {} a member for a case with neither (collective)."""
+        m = self._members_only("errors")
+        return m.everyone(m.errors_of(m.held_states(), self.run_state.seconds(self.core.step)))
+
+    def h_spread_rms(self) -> float:
+        """The members' spread of h now (m): the area-weighted RMS over the sphere of their
+        standard deviation (``io.run_file.member_statistics``, ``area_rms``), the run file's
+        ``h_spread_rms`` (collective)."""
+        return self._members_only("h_spread_rms").h_spread_rms()
+
+    @property
+    def dropped(self) -> dict[int, int]:
+        """{member: the step it blew up at} of the members dropped (``blow_up`` "drop"; collective)."""
+        return {} if self.ensemble is None else self.ensemble.dropped
+
+    @property
+    def drops(self) -> list[str]:
+        """The one line of each member dropped, in the order they were (collective)."""
+        return [] if self.ensemble is None else self.ensemble.drops
+
+    def _members_only(self, what: str) -> Members:
+        """The members' part; ``ArgumentError`` for a run made without ``members``."""
+        if self.ensemble is None:
+            raise ArgumentError(f"{what}: a run of members (Simulation(..., members=N)); this one has its state in x")
+        return self.ensemble
 
     def run(
         self,
@@ -293,6 +446,7 @@ class Simulation(Driven, Restarts, Looping):
         log=None,
         until_step: int | None = None,
         progress_lines=None,
+        until_day: float | None = None,
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
@@ -307,7 +461,8 @@ class Simulation(Driven, Restarts, Looping):
         overwrite : bool
             Replace an existing output (and restart) file.
         restart_every : float, optional
-            Write ``restart_file`` every so many model days and at the end.
+            Write ``restart_file`` every so many model days and at the end (a continuation:
+            default its checkpoint's interval, ``restart_every``).
         restart_file : path, optional
             Default ``restart_path(output)``. Without ``restart_every`` an existing
             default restart file is neither refused nor replaced.
@@ -328,6 +483,9 @@ class Simulation(Driven, Restarts, Looping):
             steps since t = 0 (given on every rank alike, or on none).
         until_step : int, optional
             Stop after this step (default: the scene's last; ``advance``; not under step control).
+        until_day : float, optional
+            Under step control, the model day to land on and stop at (default: the scene's last;
+            ``advance``).
         progress_lines : progress.ProgressLines, optional
             Rank 0's lines of progress every so many wall seconds, where no bar is drawn.
 
@@ -351,18 +509,28 @@ class Simulation(Driven, Restarts, Looping):
             SIGINT or SIGTERM (with ``catch_signals``).
         """
         check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals)
-        if output is not None and self.control is None and self.step >= (until_step or self.scene.nsteps):
-            raise ArgumentError(at_its_end("Simulation", self.step, self.scene))  # a file of no time
-        files, ckp, start, courant = self._open(
+        if restart_every is None and (output is not None or restart_file is not None):
+            restart_every = self.restart_every  # a continuation's: the interval its checkpoint was written at
+        end = self.core.step >= until_step if until_step is not None else self.time >= (until_day or self.scene.days)
+        if output is not None and end:
+            raise ArgumentError(at_its_end(type(self).__name__, self.core.step, self.scene))  # a file of no time
+        files, ckp, start, courant, first = self._open(
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
-        ledger = Ledger(self.counters, self.scene, self.step, notify if self.root else None)
-        signals = StopSignals(self.topology, catch_signals)
-        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step, progress_lines)  # noqa: E731
-        kw = {"lines": progress_lines, "compiling": self._compile, "last_good": lambda: self.last_good}
+        ledger = Ledger(self.counters, self.scene, self.core.step, notify if self.root else None)
+        ranks = self.topology if self.ensemble is None else self.ensemble.ranks
+        signals = StopSignals(ranks, catch_signals)
+        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step, progress_lines, until_day)  # noqa: E731
+        kw = {"lines": progress_lines, "compiling": self._compile}
+        if self.ensemble is None:
+            kw["last_good"] = lambda: self.last_good
+        else:  # a blow-up or a failure closes the files with why; the members dropped said
+            drops = lambda: {"dropped_members": "; ".join(self.drops)} if self.drops else {}  # noqa: E731
+            why = lambda err: {"stopped": str(err) or type(err).__name__}  # noqa: E731
+            kw.update(diagnosed=first, why="stopped", kept=why, closing=drops)
         during = self._during_run(files, ckp, log)
         stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, progress=self.progress, **kw)
         times = {"setup_time": self.setup_time, "compile_time": self._compile[0]}
         done = {"courant": courant, "output": output, "blowup": stop.blowup, "checkpoint": ckp.written, **times}
-        result = ledger.result(self.step, files.history, **done)
+        result = ledger.result(self.core.step, files.history, **done)
         return outcome(stop, self.run_state, output, ckp, result)

@@ -101,7 +101,7 @@ class Ledger:
 
 
 def interrupted(signum: int, step: int, day: float, scene, output, ckp, abandoned, result) -> Interrupted:
-    """The ``Interrupted`` a run (a ``Simulation``'s or an ``Ensemble``'s) raises when the signal
+    """The ``Interrupted`` a run (a ``Simulation``'s) raises when the signal
     ``signum`` stopped it at ``step`` (model ``day``), its line saying what was kept (``output``, the
     restart file its ``writers.Checkpointer`` ``ckp`` wrote, or an existing one it left alone) and,
     for ``abandoned`` = (b, m), the step abandoned; with ``signum``, ``result`` (the run's

@@ -107,8 +107,8 @@ class RunFiles:
     rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
     whether any holds the divergence; ``record`` diagnoses an output step (into ``history``, and
     ``on_output(step, x)``). An activity (``activities``): ``files(owner)`` records the run's step
-    at the steps of ``schedule``. An ensemble's (``Ensemble.run``): ``diagnostics`` the
-    ``Ensemble`` (its ``gather_fields`` and ``diagnose`` over the member axis), ``series`` its
+    at the steps of ``schedule``. A run of members': ``diagnostics`` its
+    ``members.Members`` (``gather_fields`` and ``diagnose`` over the member axis), ``series`` its
     per-time series and ``member_series`` (set after its first diagnostics) those of each member
     (time, member), the members along the member axis."""
 

@@ -149,15 +149,18 @@ def test_a_controlled_run_s_courant_numbers_are_at_the_controller_s_dt():
     assert abs(control.dt / sim.scene.dt - 1) > 0.1 and sim.courant() == pytest.approx(expected, rel=1e-12)
 
 
-def test_advance_and_steps_are_refused_under_step_control_in_the_api_s_words():
-    """They raised a plain ValueError naming ``until_step``, an argument the user never gives."""
+def test_steps_are_refused_under_step_control_and_advance_lands_on_the_day():
+    """``steps`` raised a plain ValueError naming ``until_step``, an argument the user never
+    gives; ``advance`` was refused too, where an ensemble's landed on the day (issue 116: one
+    driver): under step control it lands on the day asked, the run's steps the controller's."""
     from swe_sphere.core.errors import ArgumentError
 
     sim, _ = _sim(1e-5, days=0.125)
-    for call, name in ((lambda: sim.advance(0.05), "advance"), (lambda: next(sim.steps(0.05)), "steps")):
-        with pytest.raises(ArgumentError, match=f"^Simulation.{name} steps a fixed dt: under step control"):
-            call()
+    with pytest.raises(ArgumentError, match="^Simulation.steps steps a fixed dt: under step control"):
+        next(sim.steps(0.05))
     assert sim.step == 0
+    sim.advance(0.05)
+    assert sim.time == 0.05 and sim.control.accepted == sim.step > 1
 
 
 def test_a_cli_continuation_is_bitwise_the_uninterrupted_run(tmp_path):

@@ -1,6 +1,6 @@
 """A sweep over the members of an ensemble (`swe-sphere sweep --members N` with `--perturbation
 M`, `--initial FILE` or `--vary KEY=V1,...`): every (stepper, Δt) run made from each of N starts,
-member k's the start an ensemble's member k has (``ensemble.initial``: the case's state with h +
+member k's the start an ensemble's member k has (``members.initial``: the case's state with h +
 M metres of seeded white noise, member k of an ensemble's run file, or member k's own case
 parameters, Ω, g or ν, its scenes then its own), so that each run's error comes with its spread
 over the members (issue 85: a time integrator's error as a spread over members). Member k's
@@ -20,9 +20,9 @@ import numpy as np
 
 from ...core.arguments import got, integer_argument, number_argument
 from ...core.errors import ArgumentError
-from ...ensemble.initial import MemberFile, Perturbation, Variants, described, initial_states
 from ...grid.cubed_sphere import CubedSphere
 from ...io.output_files import atomic_path
+from ...members.initial import MemberFile, Perturbation, Variants, described, initial_states
 from ..figures import members_plot
 from .report import format_summary, write_outputs
 from .verdicts import table
@@ -65,7 +65,7 @@ class Members:
 
     def starts(self, scenes: dict) -> np.ndarray:
         """(N, 3, n) the members' starts on the grid of ``scenes`` (stepper name → ``Scene``),
-        checked (``ensemble.initial.initial_states``: ``ArgumentError`` naming ``initial``)."""
+        checked (``members.initial.initial_states``: ``ArgumentError`` naming ``initial``)."""
         scene = next(iter(scenes.values()))
         case = scene.make_case()
         grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())

@@ -1,4 +1,4 @@
-"""How an ensemble's members start (``ensemble.Ensemble``'s ``initial``): seeded noise in the
+"""How an ensemble's members start (``Simulation``'s ``initial`` with ``members``): seeded noise in the
 case's state (``Perturbation``), an ensemble's run file (``MemberFile``), or each member's own
 case parameters, Ω, g or ν (``Variants``)."""
 
@@ -81,7 +81,7 @@ class Perturbation:
 
 @dataclasses.dataclass(frozen=True)
 class MemberFile:
-    """Members that start from an ensemble's run file (``Ensemble.run``, ``swe-sphere run
+    """Members that start from an ensemble's run file (``Simulation.run`` with ``members``, ``swe-sphere run
     --members``): member k from the file's member k, its u, v, h at model day ``day`` (None:
     the file's last time) on the grid's unique nodes, as they were written (a run file that
     was not compressed gives the states' bits). ``path`` a str or os.PathLike."""
@@ -188,7 +188,7 @@ class Variants:
 
 
 def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -> np.ndarray:
-    """(N, 3, n) float64 the members' starts from ``initial`` (``Ensemble``'s: None, an array, a
+    """(N, 3, n) float64 the members' starts from ``initial`` (``Simulation``'s with ``members``: None, an array, a
     ``Perturbation``, a ``MemberFile`` or ``Variants``, whose members' ``cases`` these are) on
     ``grid`` from ``case``'s state, checked (``checked_states``). ``ArgumentError`` naming
     ``initial`` for another kind or shape, or Variants whose surface heights differ."""

@@ -1,4 +1,4 @@
-"""How an ensemble's held members are stepped (``Ensemble.layout``):
+"""How an ensemble's held members are stepped (``Simulation(..., members=N, layout=...)``, ``Members.layout``):
 
 - "shared": every held member in the same launches, one ``ShallowWater`` and stepper over their
   copies of the grid (``members.MemberGrid``): the launches' start-up and the loop's Python paid
@@ -25,8 +25,8 @@ from ..grid.topology import Topology
 from ..integrator import Unit
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS
+from .grid import MemberGrid
 from .initial import Variants
-from .members import MemberGrid
 
 # a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
 # run file from then on) and the others going on
@@ -134,33 +134,6 @@ def member_step(unit: Unit, j: int, watch: bool):
     """Step j + 1 of a unit's members: a block's watched as a graph where it may be
     (``GraphedSteps``), a checked step's (a block taken again) launched plainly."""
     return unit.graphed.step(unit.stepper, unit.model, unit.x, True) if watch else unit.stepper.step(unit.x)
-
-
-def drop_line(grid: CubedSphere, member: int, members: int, node: int, step: int, day: float) -> str:
-    """The line of ``member`` (of ``members``) dropped at ``step`` (model ``day``), first bad at ``node``."""
-    lat, lon = np.degrees(grid.lat[node]), np.degrees(grid.lon[node])
-    return (
-        f"member {member} of {members} blew up at step {step} (model time {day:.4f} days; first at lat {lat:.2f}, "
-        f"lon {lon:.2f} degrees): dropped, the others go on (policy: {POLICIES['drop']})"
-    )
-
-
-def blow_up_line(states: np.ndarray, dropped: dict, grid: CubedSphere, case, policy: str, step: int, day: float) -> str:
-    """The one line of a blow-up at ``step`` (model ``day``) of the members' ``states`` (N, 3, n):
-    those bad there (a non-finite value, or h ≤ 0 where ``case`` has h a depth) but ``dropped``
-    ({member: step}), the first one's place; ``policy`` a key of ``POLICIES``."""
-    bad = ~np.isfinite(states).all(axis=1)
-    if case.h_is_depth:
-        bad |= states[:, 2] <= 0
-    members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
-    k = int(members[0])
-    node = int(np.argmax(bad[k]))
-    lat, lon = np.degrees(grid.lat[node]), np.degrees(grid.lon[node])
-    return (
-        f"member{'s' if members.size > 1 else ''} {', '.join(map(str, members))} of {len(states)} blew up at step "
-        f"{step} (model time {day:.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): every member "
-        f"stopped (policy: {POLICIES[policy]}{'; none left' if policy == 'drop' else ''})"
-    )
 
 
 def unit_members(layout: str, held) -> list:

@@ -1,0 +1,12 @@
+"""The member machinery below the driver (``simulation.Simulation`` with ``members``): N disjoint
+copies of one grid (``grid.MemberGrid``), how members start (``initial``: ``Perturbation``,
+``MemberFile``, ``Variants``) and how a rank's members are stepped (``units``: in the same
+launches on the copies, or each on a model of its own, and their stepper states in a restart
+file).
+
+May import: every layer below (``adjoint`` down to ``kernels``)."""
+
+from .grid import MemberGrid
+from .initial import MemberFile, Perturbation, Variants
+
+__all__ = ["MemberFile", "MemberGrid", "Perturbation", "Variants"]

@@ -1,0 +1,293 @@
+"""A run's members (``Simulation`` with ``members``, issue 85; one driver, issue 116): N members
+of one scene, each with the bits of the single run from its initial state, in the same launches
+on N copies of the grid (``members.grid.MemberGrid``) or each on a model of its own
+(``members.units``' module doc); what is global over a grid (the ∇⁴'s spectral radius, every
+member's invariants) taken from the one grid, not the copies. ``Members`` builds them and is the
+run's diagnostics on (N, n) fields, as ``state_diagnostics.StateDiagnostics`` is a single run's."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ..cases.scoring import Scorer
+from ..core.arguments import got, integer_argument
+from ..core.errors import ArgumentError
+from ..core.mpi import RankMax
+from ..grid.cubed_sphere import CubedSphere
+from ..io.run_file import area_rms, member_statistics
+from ..members.grid import MemberGrid, member_part
+from ..members.initial import Perturbation, Variants, checked_states, described, initial_states
+from ..members.units import (
+    POLICIES,
+    held_state,
+    on_rank_zero,
+    own_units,
+    shared_unit,
+    stepper_state,
+    unit_members,
+)
+from ..members.units import layout as members_layout
+from ..model.diagnostics import invariants
+from ..model.shallow_water import ShallowWater
+from .build import check_memory
+from .state_diagnostics import WholeFields
+
+
+@dataclass
+class MemberFields(WholeFields):
+    """A run's members' ``WholeFields`` (``Members.gather_fields``): u, v, h, vorticity and
+    divergence (N, n) each on rank 0; ``held`` this rank's members' rows (u, v, h, vorticity[,
+    divergence]), (rows, n) a member, on every rank."""
+
+    held: list | None = None
+
+
+class Members:
+    """``members`` (N ≥ 1) members of ``scene`` started from ``initial`` (``Simulation``'s doc),
+    their units built on ``backend`` over the ranks of ``comm`` (rank r steps the r-th of R
+    contiguous shares, ``held``), laid out by ``layout`` and ``blow_up`` (``units.layout``,
+    ``POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Attributes as
+    ``Simulation``'s doc lists them for members (``grid``, ``copies``, ``units``, ``alike``, …);
+    ``out`` the units dropped ({unit index: step}, the integrator's, set by the driver)."""
+
+    def __init__(self, scene, members, initial, backend, comm, graphs, layout, blow_up, **options):
+        asked = scene.ensemble  # the scene's [ensemble] table, or None
+        if members is None and asked is None:
+            raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
+        members = integer_argument("members", asked["members"] if members is None else members, 1)
+        if initial is None and asked is not None and asked["perturbation"] > 0:
+            initial = Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
+        self.comm = comm if comm is not None and comm.size > 1 else None
+        ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
+        if members < ranks:
+            raise ArgumentError(f"members: {members} members over {ranks} MPI ranks (one a rank at least)")
+        self.held, self.root = np.array_split(np.arange(members), ranks)[rank], rank == 0
+        if scene.digital_filter is not None:  # not yet the single run's bits
+            raise ArgumentError("scene: it starts from a digital filter (not yet with ensembles)")
+        check_memory(scene, self.comm, backend, members)  # before the grid and the members' states are made
+        self.scene, self.members = scene, members
+        self.case = case = scene.make_case()
+        self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
+        # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
+        scenes = initial.scenes(scene, members) if isinstance(initial, Variants) else [scene] * members
+        self.cases = [s.make_case() for s in scenes] if isinstance(initial, Variants) else None
+        # the variants' values, as a restart file keeps them (JSON)
+        self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
+        starts = initial_states(initial, grid, case, members, self.cases)
+        self.initial_states = described(initial)
+        self.alike = members > 1 and (initial is None or isinstance(initial, Perturbation) and initial.amplitude == 0)
+        if blow_up not in POLICIES:
+            raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
+        self.options = {"device": backend.device, **options}
+        self.blow_up, self.lines, self.out = blow_up, [], {}  # the lines of the members dropped
+        self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
+        held = starts[self.held]
+        # one BLAS thread, as a single run's build: the ∇⁴'s power iteration takes 40 norms
+        with threadpool_limits(limits=1, user_api="blas"):
+            threads = backend.threads() if options["threads"] is None else options["threads"]
+            if self.layout == "shared":
+                fcor = None if self.cases is None else [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
+                unit, self.copies, self.one = shared_unit(
+                    scene, grid, case, held, fcor, backend, threads, self.options, graphs
+                )
+                self.units = [unit]
+            else:
+                cases = self.cases or [case] * members
+                pick = lambda items: [items[k] for k in self.held]  # noqa: E731
+                self.units = own_units(pick(scenes), grid, pick(cases), held, backend, threads, self.options, graphs)
+                self.copies, self.one = None, self.units[0].model
+        # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
+        self.hs = self.side(lambda u: u.model.operators.hs.numpy())
+        self.fcor = self.side(lambda u: u.model.operators.fcor.numpy())
+        self.g = [u.model.g for u in self.units for _ in range(u.members)]
+        self.scorer = None
+
+    def member(self, a: np.ndarray, k: int) -> np.ndarray:
+        """The k-th held member's columns (..., n) of ``a`` (..., held·n), its members side by side."""
+        return member_part(a, k, self.grid.nnodes)
+
+    def side(self, read) -> np.ndarray:
+        """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
+        parts = [read(u) for u in self.units]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
+
+    def anywhere(self, flag: bool) -> bool:
+        """Whether ``flag`` holds on any rank (collective)."""
+        return bool(flag) if self.comm is None else self.comm.allreduce(int(bool(flag))) > 0
+
+    def everyone(self, local) -> list:
+        """Every rank's ``local`` (an entry a held member) in member order, on every rank (collective)."""
+        return list(local) if self.comm is None else [e for part in self.comm.allgather(list(local)) for e in part]
+
+    def bcast(self, value):
+        """Rank 0's ``value`` on every rank (collective)."""
+        return value if self.comm is None else self.comm.bcast(value, root=0)
+
+    @property
+    def ranks(self):
+        """What ``StopSignals`` asks of the ranks: the one model's topology, or the members' ranks."""
+        return self.units[0].model.topology if self.comm is None else RankMax(self.comm)
+
+    # -- the states on (N, n) ------------------------------------------------------------
+    def held_states(self) -> np.ndarray:
+        """(held, 3, n): this rank's members' states (a dropped member's NaN)."""
+        x = self.side(lambda u: u.x.numpy())
+        states = np.stack([self.member(x, k) for k in range(self.held.size)])
+        states[list(self.out)] = np.nan
+        return states
+
+    def states(self) -> np.ndarray:
+        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the grid's element-local
+        nodes (on every rank: collective)."""
+        return np.stack(self.everyone(self.held_states()))
+
+    def set_states(self, states) -> None:
+        """``Simulation.set_states``."""
+        shape = (self.members, 3, self.grid.nnodes)
+        try:
+            states = np.asarray(states, dtype=float)
+        except (TypeError, ValueError):
+            raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
+        if states.shape != shape:
+            raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
+        pairs = enumerate(zip(self.units, unit_members(self.layout, self.held)))
+        going = [(u, k) for i, (u, k) in pairs if i not in self.out]
+        kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
+        checked_states(states[kept], self.case, "states", kept)
+        for u, k in going:
+            u.x.assign(np.concatenate(list(states[k]), axis=1))
+
+    def gather_fields(self, x=None, divergence: bool = False) -> MemberFields:
+        """Every member's u, v, h, vorticity and (``divergence``) divergence now, (N, n) each on
+        rank 0 (a dropped member's NaN; None on the other ranks), as a single run's
+        ``StateDiagnostics.gather_fields`` for its run files (``writers.RunFiles``), and this
+        rank's members' own (``MemberFields.held``) on every rank (collective; ``x`` unread)."""
+        x, zeta = self.side(lambda u: u.x.numpy()), self.side(lambda u: u.model.operators.vorticity(u.x))
+        div = self.side(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
+        rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
+        held = [np.stack([self.member(a, k) for a in rows]) for k in range(self.held.size)]
+        shown = [np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)]
+        each = shown if self.comm is None else self.comm.gather(shown, root=0)
+        if not self.root:
+            return MemberFields(None, None, None, None, held=held)
+        each = np.stack(each if self.comm is None else [m for part in each for m in part])  # (N, rows, n)
+        return MemberFields(*(each[:, r] for r in range(4)), None if div is None else each[:, 4], held=held)
+
+    def diagnose(self, t: float, x=None, whole: MemberFields | None = None) -> dict:
+        """Each member's mass, total energy, potential enstrophy (``invariants``) and errors at
+        ``t`` (s) (``errors``), (N,) arrays by name (a dropped member's NaN) on every rank, as a
+        single run's ``StateDiagnostics.diagnose`` for its run files (collective); ``whole`` this
+        step's ``gather_fields`` where taken (``x`` unread)."""
+        held = (self.gather_fields() if whole is None else whole).held
+        errors = self.errors_of([m[:3] for m in held], t)
+        each = [{**d, **e} for d, e in zip(self.invariants_of(held), errors)]
+        each = self.everyone(dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each))
+        return {key: np.array([d[key] for d in each]) for key in each[0]}
+
+    def errors_of(self, held, t: float) -> list[dict[str, float]]:
+        """Each of this rank's members' errors at ``t`` (s) of their states ``held`` (held, 3, n)
+        against the case's truth (``cases.scoring.Scorer.errors``; each variant's own)."""
+        if self.scorer is None:  # one member's model for the wind errors' vorticity and divergence
+            with threadpool_limits(limits=1, user_api="blas"):
+                one = self.one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self.options)
+            # each variant's own truth, an exact solution (a reference holds the scene's values only)
+            cases, ref = ([self.case], self.scene.reference_file) if self.cases is None else (self.cases, None)
+            self.scorer = [Scorer(c, one, one.topology, self.grid, self.member(self.hs, 0), ref) for c in cases]
+        return [self.scorer[k % len(self.scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held)]
+
+    def invariants_of(self, held: list) -> list[dict[str, float]]:
+        """Each of this rank's members' invariants (``model.diagnostics.invariants`` on the one grid:
+        the bits of the single run's) from their rows ``held`` (``MemberFields.held``)."""
+        one = self.member
+        return [
+            invariants(self.grid, *rows[:3], one(self.hs, k), rows[3], one(self.fcor, k), self.g[k])
+            for k, rows in enumerate(held)
+        ]
+
+    def h_spread_rms(self) -> float:
+        """``Simulation.h_spread_rms``."""
+        h = np.stack([self.grid.to_unique(states[2]) for states in self.states()])
+        return area_rms(self.grid, member_statistics(h)[1])
+
+    # -- blow-ups and dropped members -----------------------------------------------------
+    def blow_up_line(self, step: int, day: float) -> str:
+        """The one line of a blow-up at ``step`` (model ``day``): the members bad there (the model's
+        bad-node rule, ``BadNodes.mask``) but those dropped, the first one's place (collective)."""
+        bad = self.units[0].model.bad_nodes.mask(self.states())
+        dropped = self.dropped
+        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
+        k = int(members[0])
+        node = int(np.argmax(bad[k]))
+        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
+        last = "; none left" if self.blow_up == "drop" else ""
+        return (
+            f"member{'s' if members.size > 1 else ''} {', '.join(map(str, members))} of {self.members} blew up at "
+            f"step {step} (model time {day:.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
+            f"every member stopped (policy: {POLICIES[self.blow_up]}{last})"
+        )
+
+    def drop(self, bad: list, step: int, day: float) -> None:
+        """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` (model ``day``): their lines."""
+        for i, _, node in bad:
+            lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
+            self.lines.append(
+                f"member {self.held[i]} of {self.members} blew up at step {step} (model time {day:.4f} days; first "
+                f"at lat {lat:.2f}, lon {lon:.2f} degrees): dropped, the others go on (policy: {POLICIES['drop']})"
+            )
+
+    @property
+    def dropped(self) -> dict[int, int]:
+        """{member: the step it blew up at} of the members dropped (policy "drop"; collective)."""
+        return dict(self.everyone([(int(self.held[i]), step) for i, step in self.out.items()]))
+
+    @property
+    def drops(self) -> list[str]:
+        """The one line of each member dropped, in the order they were (collective)."""
+        return self.everyone(self.lines)
+
+    # -- restart files ---------------------------------------------------------------------
+    def restart_parts(self) -> tuple | None:
+        """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
+        file, on rank 0 (None on the others; collective): the members' arrays side by side."""
+        x, state = self.side(lambda u: u.x.numpy()), stepper_state(self.units, self.layout, self.held)
+        policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
+        if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
+            x, state = on_rank_zero(self.comm, x, state)
+            if not self.root:
+                return None
+        keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
+        grid = self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members)
+        return x, state, keep, grid
+
+    def restore(self, ck) -> None:
+        """The states and stepper histories of the checkpoint ``ck`` (an ensemble's) into the units."""
+        n = ck.x.shape[1] // ck.members
+        for u, k in zip(self.units, unit_members(self.layout, self.held)):
+            nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
+            u.x.assign(ck.x[:, nodes])
+            prefix = None if self.layout == "shared" else f"member{k[0]}_"
+            u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
+        dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
+        self.out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
+        self.initial_states = ck.initial.get("initial_states", self.initial_states)
+
+    def attrs(self) -> dict:
+        """The run file's global attributes of the members."""
+        return {
+            "ensemble_layout": self.layout,
+            "members": self.members,
+            "initial_states": self.initial_states,
+            "blow_up_policy": POLICIES[self.blow_up],
+        }
+
+
+def member_starts(ck) -> tuple:
+    """(states (N, 3, n), or the file's ``Variants``) an ensemble's checkpoint ``ck`` starts its
+    members from, and its layout and blow-up policy, as ``Members`` takes them."""
+    n = ck.x.shape[1] // ck.members
+    variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
+    initial = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2) if variants is None else Variants(variants)
+    return initial, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")

@@ -1,0 +1,96 @@
+"""One driver (issue 116): ``Simulation`` steps one member or N; a continued run, of one member or
+many, at a fixed Δt or under step control, keeps what its checkpoint holds (its restart interval,
+its control, its output times) and is bitwise the uninterrupted run (issue 117 items 1, 3, 4)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import pytest
+
+from swe_sphere.core.errors import ArgumentError
+from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.simulation.simulation import Simulation
+
+from helpers import TINY, cli_main, one_line
+
+SMALL = {"ne": 2, "np": 4, "dt": 900.0}
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+
+def last_h(path) -> np.ndarray:
+    with netCDF4.Dataset(path) as ds:
+        return np.asarray(ds["h"][-1])
+
+
+@pytest.mark.parametrize("members", [(), ("--members", "2", "--perturbation", "1")], ids=["one", "members"])
+@pytest.mark.parametrize("control", [(), ("--stepper", "bs32", "-s", "time.control=error")], ids=["fixed", "error"])
+def test_a_continuation_keeps_its_restart_interval_and_is_the_uninterrupted_run(capsys, members, control):
+    """Item 1: an ensemble's continuation wrote no restart file and, under time.control=error,
+    landed on other times than the run never stopped (not bitwise). Now each of the four keeps
+    its checkpoint's restart interval: its restart file written, its last state the bits of
+    the uninterrupted run's."""
+    run = ("run", "tc2_steady", *TINY, "--dt", "900", *members, *control, "--restart-every", "0.25")
+    assert cli_main(capsys, *run, "--days", "0.5", "--output", "a.nc")[0] == 0
+    code, out, err = cli_main(capsys, "run", "--continue", "a.restart.nc", "--days", "1", "--no-progress")
+    assert code == 0, err
+    assert "restart     a_continued.restart.nc (every 0.25 days" in out
+    assert Path("a_continued.restart.nc").exists()
+    assert cli_main(capsys, *run, "--days", "1", "--output", "w.nc")[0] == 0
+    assert np.array_equal(last_h("a_continued.nc"), last_h("w.nc"))
+
+
+def test_a_continued_ensemble_refuses_s_and_says_since_the_day_it_restarts(capsys):
+    """Items 3 and 4: `--continue E -s time.rtol=1e-6` was accepted and ignored for an ensemble
+    (a single run's continuation refuses -s in one line); a controlled ensemble's continuation
+    said "relative change ... since day 0.944444" (its steps × the first Δt) for a restart at
+    day 1."""
+    run = ("run", "tc2_steady", *TINY, "--dt", "900", "--members", "2", "--perturbation", "1")
+    run += ("--stepper", "bs32", "-s", "time.control=error", "--days", "0.5")
+    assert cli_main(capsys, *run, "--restart-every", "0.5", "--output", "e.nc")[0] == 0
+    code, out, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "1", "-s", "time.rtol=1e-6")
+    one_line(code, err, 2, "-s time.rtol=1e-6: a checkpointed scene continues as it was written")
+    code, out, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "1", "--no-progress")
+    assert code == 0, err
+    assert "relative change" in out and all("since day 0.5," in line for line in out.splitlines() if "since" in line)
+
+
+def test_an_s_ensemble_table_takes_the_member_count_of_members(capsys):
+    """`-s ensemble.degrees=[1,2]` with `--members 2` was refused as "ensemble.members is
+    missing": the table's members are --members'."""
+    band = ("--members", "2", "--perturbation", "1", "-s", "ensemble.degrees=[1, 2]", "--dt", "900")
+    code, out, err = cli_main(capsys, "run", "tc2_steady", *TINY, "--days", "0.125", *band, "--output", "b.nc")
+    assert code == 0, err
+    with netCDF4.Dataset("b.nc") as ds:
+        assert ds.dimensions["member"].size == 2
+
+
+def test_one_driver_for_one_member_and_many():
+    """``Simulation(scene, members=N)`` is the ensemble: member k the bits of the single run;
+    ``advance`` and ``add_callback`` the same for one and many; the old class a subclass whose old
+    names warn in one line."""
+    many = Simulation("galewsky", "cpu", members=2, initial=Perturbation(1.0, seed=2), progress=False, **SMALL)
+    starts = many.states()
+    seen = []
+    many.add_callback(lambda sim: seen.append(sim.step), every_steps=2)
+    many.advance(4 * 900 / 86400)
+    one = Simulation("galewsky", "cpu", start=starts[1], progress=False, **SMALL)
+    one.advance(4 * 900 / 86400)
+    assert many.step == one.step == 4 and seen == [2, 4] and many.members == 2 and one.members == 1
+    assert np.array_equal(many.states()[1], one.states()[0])
+    with pytest.warns(DeprecationWarning, match=r"^swe_sphere.Ensemble is deprecated"):
+        ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **SMALL)
+    with pytest.warns(DeprecationWarning, match=r"^Ensemble.step_count is deprecated: step$"):
+        assert ens.step_count == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert isinstance(ens, Simulation) and ens.time == 0.0 and ens.states().shape == starts.shape
+    with pytest.raises(ArgumentError, match=r"^set_states: a run of members"):
+        one.set_states(starts)

@@ -1,7 +1,7 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
 written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), and ``Restarts``, the methods
-``restore_history``, ``restore_members`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
+``restore``, ``restore_history``, ``restore_members`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
 
 from __future__ import annotations
 
@@ -43,6 +43,17 @@ class Restarts:
     """A ``Simulation``'s state and history restored from a checkpoint, and its restart file
     written (its attributes the simulation's: ``x``, ``stepper``, ``step``, ``counters``,
     ``initial``, ``control``, ``topology``, ...)."""
+
+    def restore(self, ck: ckpt.Checkpoint) -> None:
+        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint (a
+        single run's; ``CheckpointError`` for a state of another grid)."""
+        try:
+            # ck.x on rank 0 only (``checkpoint.read_on_root``)
+            x = self.topology.distribute(ck.x, 3, "checkpoint state")
+        except ValueError as err:
+            raise CheckpointError(str(err)) from None
+        self.x.assign(x)
+        self.restore_history(ck)
 
     def restore_history(self, ck: ckpt.Checkpoint) -> None:
         """The stepper history, counters, step control and t = 0 invariants of a checkpoint (the state

@@ -5,7 +5,7 @@ scene it runs, its step control, its t = 0 diagnostics and counters, the model t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ..config.scene import Scene
 from ..core.constants import DAY
@@ -16,19 +16,16 @@ from ..integrator import Integrator, forwarded
 class RunState:
     """A run's state: ``core`` its integrator (the step, and one unit's state x (3, N), last good
     state and stepper), ``scene`` the scene it runs (replaced by a fitted Δt or a lengthened run),
-    ``control`` its step control (``adaptive.StepControl``; None at a fixed Δt), ``initial`` its
-    t = 0 diagnostics (relative changes are taken against them), ``counters`` its RHS evaluations,
-    wall and CPU seconds and solver iterations (by name), from zero."""
+    ``initial`` its t = 0 diagnostics (relative changes are taken against them); ``counters`` and
+    ``control`` (a ``StepControl``; None at a fixed Δt) the integrator's."""
 
     core: Integrator
     scene: Scene
-    control: object = None
     initial: dict | None = None
-    counters: dict = field(
-        default_factory=lambda: {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
-    )
 
     step = forwarded("core.step", "The steps taken (the integrator's).", False)
+    counters = forwarded("core.counters", "The steps' counts (the integrator's).", False)
+    control = forwarded("core.control", "The step control (the integrator's; None at a fixed Δt).")
     x = forwarded("core.units.0.x", "The state (3, N) (the one unit's).", False)
     last_good = forwarded("core.units.0.start", "The last good state (3, N) (the one unit's start).", False)
     stepper = forwarded("core.units.0.stepper", "The stepper (the one unit's).", False)

@@ -22,8 +22,8 @@ from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..integrator import FixedDt, Integrator, Unit, forwarded
+from ..integrator.control import StepControl
 from ..members.units import member_step
-from .adaptive import StepControl
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
 from .drive import Driven
@@ -258,7 +258,6 @@ class Simulation(Driven, Restarts, Looping):
         # the one step loop over the units: a block watched, a checked step plain (``member_step``)
         self.core = Integrator(m.units, FixedDt(member_step), anywhere=m.anywhere, drop=blow_up == "drop", lone=False)
         self.core.out = m.out  # the units dropped
-        control = None
         if scene.control is not None:  # one Δt for every member: in the same launches, on one rank
             if m.layout != "shared" or m.comm is not None:
                 where = "over MPI ranks" if m.comm is not None else "each on a model of its own"
@@ -267,8 +266,8 @@ class Simulation(Driven, Restarts, Looping):
                     "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
                     f"blow_up 'stop'), not {where}"
                 )
-            control = StepControl(scene.control, m.units[0], scene.start_day)
-        self.run_state = RunState(self.core, scene, control)
+            self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
+        self.run_state = RunState(self.core, scene)
 
     # -- restarts and branches (``restart.Restarts``); driven from Python: ``drive.Driven`` --
     @classmethod
@@ -346,9 +345,9 @@ class Simulation(Driven, Restarts, Looping):
 
     # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
     scene = forwarded("run_state.scene", "The ``Scene`` run (resolved; a fitted Δt or a lengthened run replace it).")
-    control = forwarded("run_state.control", "The ``adaptive.StepControl`` under ``Scene.control``, else None.")
+    control = forwarded("core.control", "The integrator's ``StepControl`` under ``Scene.control``, else None.")
     initial = forwarded("run_state.initial", "The t = 0 diagnostics relative changes are taken against.")
-    counters = forwarded("run_state.counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
+    counters = forwarded("core.counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
     time = forwarded("run_state.time", "Days since t = 0 at the current step (``RunState.time``).")
     event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
@@ -375,7 +374,7 @@ class Simulation(Driven, Restarts, Looping):
         "core.units.0.graphed.checked", "Step graphs compared bit for bit with plain ones (``GraphedSteps``).", False
     )
 
-    # a step of the stepper, not watched nor counted: a controlled run's tries (``adaptive.StepControl``)
+    # a step of the stepper, not watched nor counted: a controlled run's tries (``integrator.control.StepControl``)
     try_step = _delegated(Unit.try_step, lambda sim: sim.core.units[0])
 
     # -- the members' states and diagnostics on (N, n) (``members.Members``; one run: N = 1)

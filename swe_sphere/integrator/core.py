@@ -26,12 +26,12 @@ import time
 import numpy as np
 import warp as wp
 
-from .core.constants import DAY
-from .core.errors import StepFailure
-from .core.graphs import GraphedSteps
-from .core.interrupts import StepAbandoned
-from .model.shallow_water import ShallowWater
-from .steppers import StepStats
+from ..core.constants import DAY
+from ..core.errors import StepFailure
+from ..core.graphs import GraphedSteps
+from ..core.interrupts import StepAbandoned
+from ..model.shallow_water import ShallowWater
+from ..steppers import StepStats
 
 
 @dataclasses.dataclass
@@ -57,7 +57,7 @@ class Unit:
     def try_step(self, x: wp.array) -> StepStats:
         """One step of the stepper on x (3, members·n) in place, a graph where ``graphed`` lets it,
         the bad-state flag not watched and the solvers' counters not read: a controlled run's
-        tries (``simulation.adaptive.StepControl``). Its ``StepStats``."""
+        tries (``control.StepControl``). Its ``StepStats``."""
         return self.graphed.step(self.stepper, self.model, x, False)
 
 
@@ -181,7 +181,7 @@ class FixedDt:
 
 class ControlledDt:
     """The Δt policy of step control (Oceananigans' ``TimeStepWizard`` with ``aligned_time_step``):
-    each step an accepted step of ``control`` (a ``simulation.adaptive.StepControl``: its tries,
+    each step an accepted step of ``control`` (a ``control.StepControl``: its tries,
     rejected ones retried) toward the first of ``days`` (model days from t = 0, increasing) after
     the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
     step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``; None:
@@ -225,13 +225,18 @@ class Integrator:
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
     watched. ``rewind``: how a block is kept and put back (``Rewind``). ``step``: the steps
-    taken."""
+    taken; ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
+    name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files;
+    ``control``: the ``control.StepControl`` of a controlled Δt (None: fixed)."""
 
     def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True, rewind=None):
         self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere
         self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
         self.out: dict[int, int] = {}
         self.step = 0
+        # what the loop counts (a driver's ``Ledger`` adds to them; a restart file carries them)
+        self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
+        self.control = None  # the step control (``control.StepControl``) under a controlled Δt
 
     def active(self) -> list:
         """(index, unit) of the units still stepped (all but those dropped)."""

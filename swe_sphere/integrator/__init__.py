@@ -1,0 +1,35 @@
+"""The integrator layer: the package's one step loop (``core``: ``Integrator``, its ``Unit`` s,
+the guard, the Δt policies ``FixedDt`` and ``ControlledDt``, the observer hooks) and the step
+control it steps under a controlled Δt (``control``: ``StepControl`` and its tries, ``Tries``).
+Every driver steps through it: a run of one member or many (``simulation.Simulation``) and the
+gradient's sweeps (``adjoint.gradient``).
+
+May import: every layer below (``config`` down to ``kernels``)."""
+
+from .core import (
+    ControlledDt,
+    FixedDt,
+    Integrator,
+    Observer,
+    Rewind,
+    Stop,
+    Unit,
+    counted,
+    forwarded,
+    graphed_step,
+    trouble_line,
+)
+
+__all__ = [
+    "ControlledDt",
+    "FixedDt",
+    "Integrator",
+    "Observer",
+    "Rewind",
+    "Stop",
+    "Unit",
+    "counted",
+    "forwarded",
+    "graphed_step",
+    "trouble_line",
+]

@@ -1,0 +1,408 @@
+"""Steps that choose themselves (``Scene.control``): the step control the loop owns when a scene
+asks for an accuracy or a Courant number instead of a Δt.
+
+``StepControl.step`` takes one accepted step toward a target time (an output, restart or end
+time): Δt the controller's last proposal, held within [dt_min, dt_max] and shortened to land on
+the target exactly, told the stepper (``Stepper.set_dt``). Under ``error`` control a step whose
+error norm (``control.ErrorNorm`` of the pair's estimate) is above 1 is rejected: the state and
+the stepper's state put back, retried at the controller's shorter Δt (with ``per_unit_step`` the
+norm per unit step, ‖e‖ · 1 day / Δt, so that the error a run accumulates follows rtol:
+Shampine 2005, J. Sci. Comput. 25:3). A CFL target (``control.CflController``) is the whole
+control under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_default``)
+``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
+only (no growth bound: where it does not bind, the steps are the error controller's, bit for
+bit). Under ``balanced`` control the tolerances follow the grid (``Balance``: issue 64's "a run
+that asks for an accuracy"). A run's Δt policy under control is ``core.ControlledDt`` of a ``StepControl`` (``simulation.adaptive.steered``).
+
+Its tries replay as graphs where a fixed-Δt run's steps do (``core.Unit.try_step``: on CUDA
+by default): a graph is keyed by Δt (``GraphCapture.graph_key``), and the controller's Δt are few,
+those of its grid (``on_grid``), so each keeps its graph (a step landed on a target, its Δt off
+the grid, runs plain); the norm's read is the one host read of a try, and the Courant numbers'
+pass, where it is taken, a second. The IMEX pairs' tries run plain (their solver copies its
+guess histories on the host's decision, ``HelmholtzSolver.checkpoint``), as the JFNK stepper's.
+
+Lookahead (``StepControl.lookahead``: on CUDA, an explicit pair under "error" control on one
+rank): a try's norm is queued with its read, then the next try at the same Δt is launched from
+the try's end (kept in ``xs``) before the norm is read, so that the card steps while the host
+reads and decides; where the try is accepted and the next Δt is that one (Δt changes in about
+2 % of ``rk43``'s steps), the try launched ahead is the next step (its start, in ``xs``, swaps
+into ``x0``: no copy), else it is undone (x back from its start, the stepper rolled back), and
+only where nothing reads the state between the two steps (``quiet``: no activity due after the
+first, neither lands on a target): the same tries, counts and bits as without it (a try
+launched ahead and undone is not counted: ``ahead_dropped``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..config.control import ESTIMATED
+from ..config.schema import SceneControl
+from ..core.constants import DAY
+from ..core.errors import BlowUp, SceneError
+from ..steppers import StepStats
+from ..steppers.capabilities import ErrorEstimates, TrialSteps
+from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
+from .core import Rewind
+
+# a target this close past a step's end (relative to Δt) is landed on by that step rather than
+# left to a sliver of a step after it
+LANDING_SLACK = 1e-6
+# a proposal is taken rounded down to one of DT_GRID steps an octave (each ≤ 4.4 % below the next),
+# so that the same few Δt recur: the stages' combinations and the ∇⁴ step keep a recorded launch
+# list for each of the last LAUNCH_VARIANTS coefficient sets (``LaunchRecorder.variants``), and
+# a Δt among them replays its list as recorded; another sets the least recently used list's
+# coefficient arguments in place (nothing recorded). Before they were arguments, a new Δt
+# recorded the lists again: 1.4–3.1 ms a step at ne8 against a 0.9 ms bs32 step
+# (benchmarks/adaptive_proportionality.py (d)); now benchmarks/control_overhead.py
+DT_GRID = 16
+LAUNCH_VARIANTS = 4
+
+# under "error" with a cap, the Courant numbers' pass is skipped after a step whose error
+# proposal is below CAP_MARGIN of the cap the last pass found, within the cap's growth bound,
+# for at most CAP_EVERY steps in a row: there the cap cannot bind unless the largest signal speed
+# over Δx grows by a third within those steps, and the proposal stands as the pass would leave
+# it (a pass is 0.31 ms of a 14 ms rk43 step at ne30, one thread)
+CAP_MARGIN = 0.75
+CAP_EVERY = 16
+# where a try is launched ahead, its Courant pass is queued before it when the last step's growth,
+# applied again, would bring the proposal within this fraction of CAP_MARGIN of the cap
+CAP_LIKELY = 0.9
+
+# under "balanced", the spatial error's rate is estimated again after this many accepted steps
+# (one RHS evaluation and a pass over the state: 1/16 of an RHS a step), and no absolute
+# tolerance falls below ATOL_FLOOR (each row's units, m s⁻¹ and m: the round-off of a state)
+BALANCE_EVERY = 16
+ATOL_FLOOR = 1e-12
+
+
+class Balance:
+    """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
+    with rtol 0) on ``unit``'s model and grid (an ``integrator.Unit``), held to ``fraction`` (``SceneControl.balance``).
+    ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
+    scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
+    then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
+    ``fraction`` of the spatial error the grid makes over Δt, on every row alike (σ is the
+    largest row's relative rate times each row's RMS). Why rates and not the errors
+    themselves: both errors grow with time and are carried by the same flow (Galewsky ne30's
+    spatial error grows 150-fold from day 1 to day 6 while the state's highest-mode tail does not
+    triple), so balancing what each step adds balances their sums as far as the flow carries
+    them alike; a step's estimate being a local error, the mode is per unit step (Δt in the
+    tolerance). ``state``/``restore``: σ and the steps since its estimate (a restart continues
+    bitwise)."""
+
+    def __init__(self, fraction: float, unit, norm: ErrorNorm):
+        self.fraction, self.model, self.norm = float(fraction), unit.model, norm
+        self.rate = SpatialRate(unit.model.topology)
+        self.F = wp.zeros_like(unit.x)
+        self.sigma, self.since = None, 0
+
+    def tolerances(self, x0, t: float, dt: float) -> None:
+        if self.sigma is None or self.since >= BALANCE_EVERY:
+            self.model.set_time(t)  # a forcing's F at the step's start
+            self.model.rhs(x0, self.F)
+            self.sigma, self.since = self.rate.scales(self.F.numpy(), x0.numpy()), 0
+        self.norm.atol.assign(np.maximum(self.fraction * dt * self.sigma, ATOL_FLOOR))
+
+    def state(self) -> dict:
+        return {"sigma": None if self.sigma is None else [float(v) for v in self.sigma], "since": self.since}
+
+    def restore(self, state: dict) -> None:
+        self.sigma = None if state["sigma"] is None else np.array(state["sigma"], dtype=np.float64)
+        self.since = int(state["since"])
+
+
+# the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a bound only,
+# as the keys no longer hold Δt (a fixed-Δt run records about 10)
+LAUNCH_LISTS = 64
+
+
+# the times and Δt (s; the day reached, days) a ``StepControl.state`` holds, restored as floats
+_TIMES = ("dt", "t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
+
+
+def on_grid(dt: float) -> float:
+    """``dt`` (s, > 0) rounded down to 2^(k / DT_GRID) s, k an integer."""
+    return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
+
+
+@dataclass(frozen=True)
+class _Ahead:
+    """A try launched ahead (``StepControl.lookahead``): its start t (s), Δt (s), the stepper's
+    checkpoint before it and its ``StepStats``."""
+
+    t: float
+    dt: float
+    saved: object
+    stats: StepStats
+
+
+class StepControl:
+    """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
+    under "error" with an ``error_estimate``) on ``unit`` (an ``integrator.Unit``: its model, stepper,
+    state x (3, N) and last good state ``start``, a try's start), from model day ``start_day`` (the
+    scene's: 0, or a branch's day). The first proposal is the stepper's Δt. Counts: ``accepted``,
+    ``rejected``, the smallest, summed and largest accepted Δt (s); ``history``: (time (s), Δt (s),
+    error norm or NaN) per accepted step.
+    Where the steps are: ``t`` (s since t = 0, from the scene's start day), ``day`` (days;
+    a target's day as given where a step landed on it, ``landed``), the last accepted ``dt_last``
+    and its error norm ``error_last`` (NaN under "cfl")."""
+
+    def __init__(self, control: SceneControl, unit, start_day: float = 0.0):
+        self.control, self.stepper, self.unit = control, unit.stepper, unit
+        stepper, model, topology = unit.stepper, unit.model, unit.model.topology
+        pressure = "pressure_gradient" in model.terms  # h a depth: h ≤ 0 is a bad state
+        self.error = control.mode in ESTIMATED
+        self.norm = self.controller = self.balance = None
+        if self.error:
+            if not isinstance(stepper, ErrorEstimates) or not isinstance(stepper, TrialSteps):
+                raise SceneError(f"stepper {stepper.name}: no error estimate or trial steps to control its steps by")
+            # the estimate's order in Δt: p + 1 a step, p per unit step (p the pair's lower order)
+            order = min(stepper.order, stepper.embedded_order) + (0 if control.per_unit_step else 1)
+            self.controller = Controller(order, control.controller)
+            if control.mode == "balanced":  # absolute tolerances alone, set every try (``Balance``)
+                self.norm = ErrorNorm(topology, 0.0, ATOL_FLOOR, ATOL_FLOOR, pressure)
+                self.balance = Balance(control.balance, unit, self.norm)
+            else:
+                self.norm = ErrorNorm(topology, control.rtol, control.atol_wind, control.atol_h, pressure)
+                # an inner solve's error below the step's (atol 0: rtol in each field's units)
+                atol = min(control.atol_wind, control.atol_h) or control.rtol
+                stepper.follow_tolerance(atol, control.rtol, control.per_unit_step)
+            stepper.estimate_errors()
+            stepper.carry_last_stage()  # an FSAL pair's last RHS is the next step's first
+        gravity_waves = stepper.courant_limit is not None  # explicit gravity waves: the signal's Courant number
+        growth = math.inf if control.cfl_default else CflController.max_change  # the default cap: a bound only
+        self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)
+        self.courant = None if self.cfl is None else CourantMax(topology, topology.grid.dx, model.g, pressure)
+        self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
+        self.courant_passes = 0  # the Courant numbers' passes taken; under "error", skipped where the cap cannot bind
+        self.courant_queued = 0  # of them, those queued before the try launched ahead (``_pass_likely``)
+        self._trend = 1.0  # the last accepted step's proposal over its Δt
+        self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
+        self.dt = float(stepper.dt)
+        model.launches.limit, model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
+        self.x0 = unit.start  # a step's start: the guard's last good state (``Tries``)
+        # the next try launched before this one's norm is read: where the host's read would idle the card
+        on_one_card = not topology.backend.host and not topology.distributed
+        self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
+        self.xs = None  # the start of a try launched ahead (the end of the try before it), made at first use
+        self.ahead: _Ahead | None = None  # the try launched ahead, not yet taken or undone
+        self.ahead_taken = self.ahead_dropped = 0
+        self.accepted = self.rejected = self.capped = 0  # capped: accepted steps whose next Δt the cap set
+        self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
+        self.history: list[tuple[float, float, float]] = []
+        self.day, self.landed = float(start_day), True
+        self.t, self.dt_last, self.error_last = self.day * DAY, math.nan, math.nan
+
+    def step_to(self, x, day: float, quiet: bool = False) -> StepStats:
+        """``step`` from ``t`` toward ``day`` (days from t = 0): ``t``, ``day`` and ``landed``
+        moved on; the ``StepStats`` of its tries (rejected ones included)."""
+        self.t, stats = self.step(x, self.t, day * DAY, quiet)
+        self.landed = self.t == day * DAY
+        self.day = day if self.landed else self.t / DAY
+        return stats
+
+    def step(self, x, t: float, target: float, quiet: bool = False) -> tuple[float, StepStats]:
+        """One accepted step of x (3, N) in place from t (s) toward ``target`` (s, > t), rejected
+        steps retried; (the time reached: ``target`` itself where the step landed on it, the
+        ``StepStats`` of every try). ``quiet``: nothing reads x between this step and the next,
+        which may then be launched ahead (``lookahead``). Raises ``BlowUp`` when the proposal
+        falls below dt_min short of the target."""
+        c, tries = self.control, StepStats(0, {})
+        ahead, self.ahead = self.ahead, None
+        if ahead is None:
+            wp.copy(self.x0, x)  # the tries' start
+        else:  # the start of the try launched ahead is in xs: the two swap (a copy fewer a step)
+            self.x0, self.xs = self.xs, self.x0
+            self.unit.start = self.x0
+        while True:
+            left = target - t
+            dt = min(self.dt, c.dt_max or math.inf)
+            dt = max(on_grid(dt), min(dt, c.dt_min))  # not below dt_min by the rounding alone
+            landing = left <= dt * (1 + LANDING_SLACK)
+            dt = left if landing else dt
+            if ahead is not None and (ahead.t, ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
+                self._undo(x, ahead, self.x0)
+                ahead = None
+            if dt < c.dt_min and not landing:
+                raise BlowUp(
+                    f"step {self.accepted + 1} at day {t / DAY:.6g}: the controller's dt {dt:.4g} s fell below "
+                    f"time.dt_min = {c.dt_min:g} s ({self.rejected} steps rejected so far)"
+                )
+            if ahead is not None:  # launched ahead as this try
+                saved, stats, ahead = ahead.saved, ahead.stats, None
+                self.ahead_taken += 1
+            else:
+                saved, stats = self._try(x, t, dt)
+            if self.balance is not None:
+                self.balance.tolerances(self.x0, t, dt)
+            queued = False  # the Courant pass over x queued before the next try (``_pass_likely``)
+            if self.error:
+                self.norm.launch(self.stepper.error_estimate, self.x0, x)
+                if self.lookahead and quiet and not landing and left - dt > dt * (1 + LANDING_SLACK):
+                    if self.courant is not None and self._pass_likely(dt):
+                        self.courant.launch(x)
+                        queued = True
+                    ahead = self._launch_ahead(x, t + dt, dt)
+            iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
+            tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
+            ok, proposal, err = self._propose(x if ahead is None else self.xs, dt, queued)
+            if ok:
+                break
+            self.rejected += 1
+            if ahead is not None:  # undone with the try it followed
+                self.ahead_dropped, ahead = self.ahead_dropped + 1, None
+            wp.copy(x, self.x0)
+            self.stepper.rollback(saved)
+            self.dt = proposal
+        self.dt = max(proposal, self.dt) if landing else proposal  # a step cut to land: not a shrink
+        self.accepted += 1
+        if self.balance is not None:
+            self.balance.since += 1
+        self.dt_smallest, self.dt_largest = min(self.dt_smallest, dt), max(self.dt_largest, dt)
+        self.dt_sum += dt
+        self.dt_last, self.error_last = dt, err
+        reached = target if landing else t + dt
+        self.history.append((reached, dt, err))
+        self.ahead = ahead
+        return reached, tries
+
+    def _try(self, x, t: float, dt: float) -> tuple:
+        """A try of ``dt`` from t (s) on x: (the stepper's checkpoint before it or None, its ``StepStats``)."""
+        self.stepper.set_dt(dt)
+        self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
+        saved = self.stepper.checkpoint() if self.error else None
+        return saved, self.unit.try_step(x)
+
+    def _launch_ahead(self, x, t: float, dt: float) -> _Ahead:
+        """The next try, of ``dt`` from t (s), launched on x, its start kept in ``xs``."""
+        if self.xs is None:
+            self.xs = wp.zeros_like(x)
+        wp.copy(self.xs, x)
+        saved, stats = self._try(x, t, dt)
+        return _Ahead(t, dt, saved, stats)
+
+    def _undo(self, x, ahead: _Ahead, start) -> None:
+        """x and the stepper back to where the try launched ahead started (its state ``start``)."""
+        wp.copy(x, start)
+        self.stepper.rollback(ahead.saved)
+        self.ahead_dropped += 1
+
+    def settle(self, x) -> None:
+        """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state
+        (before the run stops, or anything reads it)."""
+        if self.ahead is not None:
+            self._undo(x, self.ahead, self.xs)
+            self.ahead = None
+
+    def vouched(self) -> bool:
+        """Whether the last accepted step's state was found good by its norm or Courant pass
+        (``checked``), so that the integrator's guard need not read it; where not, a try
+        launched ahead is undone first (``settle``: the guard reads x)."""
+        if not self.checked:
+            self.settle(self.unit.x)
+            return False
+        if self.ahead is None:  # else the next try runs on: the step's time is the host's
+            wp.synchronize_device(self.unit.x.device)
+        return True
+
+    def _propose(self, x, dt: float, queued: bool = False) -> tuple[bool, float, float]:
+        """(accepted, the next Δt, the error norm or NaN) of a step of ``dt`` that ended in x
+        (its norm launched: ``ErrorNorm.launch``; with ``queued``, its Courant pass too)."""
+        err, ok, proposal, self.checked = math.nan, True, dt, False
+        if self.error:
+            err = self.norm.read()
+            if self.control.per_unit_step:  # the error a day of such steps would add, against the tolerance
+                err *= DAY / dt
+            ok, proposal = self.controller.propose(dt, err)
+            self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)
+            if ok:
+                self._trend = proposal / dt
+        if self.cfl is not None and ok and not self._cap_idle(dt, proposal):  # a retry's Δt is the error controller's
+            numbers, bad = self.courant.read(dt) if queued else self.courant(x, dt)
+            self.courant_passes += 1
+            self.courant_queued += queued
+            cap = self.cfl.propose(dt, numbers)
+            rate = self.cfl.courant(numbers) / dt  # the Courant number a second of Δt
+            self._cap_seconds, self._since_pass = (self.cfl.cfl / rate if rate > 0 else math.inf), 0
+            if self.error and cap < proposal:
+                self.capped += 1
+            proposal = capped(proposal, cap) if self.error else cap
+            self.checked = self.checked or not bad
+        return ok, proposal, err
+
+    def _pass_likely(self, dt: float) -> bool:
+        """Whether the Courant pass after a try of ``dt`` is likely to be taken (``_cap_idle``
+        false), judged before its norm is read from the last accepted step's proposal over its
+        Δt: where it is, the pass is queued behind the norm and before the try launched ahead,
+        so that its read does not wait for that try and leave the card idle while the host
+        launches the next (a pass after every 4th step of TC5 ne60 ``rk43`` at rtol 1e-6 on an
+        H100, the host waiting 0.39 ms in each under cProfile). A pass queued and not taken is dropped;
+        one taken and not queued runs then, as without lookahead: the same numbers either way."""
+        if self._since_pass >= CAP_EVERY:
+            return True
+        proposal = dt * self._trend
+        return proposal > dt * self.cfl.max_change or proposal >= CAP_LIKELY * CAP_MARGIN * self._cap_seconds
+
+    def _cap_idle(self, dt: float, proposal: float) -> bool:
+        """Whether the Courant pass is skipped after this step (``CAP_MARGIN``): under "error",
+        the proposal well below the last pass's cap and within its growth bound; counted."""
+        idle = self.error and self._since_pass < CAP_EVERY and proposal < CAP_MARGIN * self._cap_seconds
+        idle = idle and proposal <= dt * self.cfl.max_change
+        self._since_pass += idle
+        return idle
+
+    def summary(self) -> str:
+        """The summary's line: accepted and rejected steps, the smallest, mean and largest Δt."""
+        mean = self.dt_sum / max(self.accepted, 1)
+        cap = ""
+        if self.error and self.cfl is not None:
+            cap = f"; the Courant cap {self.cfl.cfl:.3g} set the next dt after {self.capped} of them"
+        if self.balance is not None and self.balance.sigma is not None:
+            b = self.balance
+            cap += f"; balanced at {b.fraction:g} of the spatial error's rate (last {b.rate.last:.3g} s⁻¹, relative)"
+        return (
+            f"{self.accepted} steps accepted, {self.rejected} rejected; dt smallest {self.dt_smallest:.4g} s, "
+            f"mean {mean:.4g} s, largest {self.dt_largest:.4g} s{cap}"
+        )
+
+    def state(self) -> dict:
+        """The next proposal, the controller's history and the counts (a restart file's numbers)."""
+        s = {k: getattr(self, k) for k in (*_TIMES, "accepted", "rejected", "capped", "landed")}
+        s |= {"balance": self.balance.state()} if self.balance is not None else {}
+        return s | ({"controller": self.controller.state()} if self.error else {})
+
+    def restore(self, state: dict) -> None:
+        """Continue from ``state()``: the same steps as the control it came from."""
+        for k in _TIMES:
+            setattr(self, k, float(state[k]))
+        self.accepted, self.rejected = int(state["accepted"]), int(state["rejected"])
+        self.landed = bool(state["landed"])
+        self.capped = int(state.get("capped", 0))  # a restart file from before the count: 0
+        if self.error:
+            self.controller.restore(state["controller"])
+        if self.balance is not None:
+            self.balance.restore(state["balance"])
+        self._cap_seconds = 0.0  # the next step takes the Courant pass
+
+
+class Tries(Rewind):
+    """A controlled step kept and put back by the integrator's loop (``simulation.adaptive.steered``): the state of its
+    ``control`` (a ``StepControl``; the step's start is the control's own, its unit's ``start``)."""
+
+    def __init__(self, control: StepControl):
+        self.control, self.saved = control, None
+
+    def keep(self, active: list, whole: bool):
+        self.saved = self.control.state()
+        return {}
+
+    def put_back(self, active: list, saved: dict, whole: bool) -> None:
+        unit = self.control.unit
+        self.control.settle(unit.x)
+        wp.copy(unit.x, unit.start)
+        self.control.restore(self.saved)

@@ -1,10 +1,9 @@
 """The run loop of ``Simulation.run``, of one member or many: the run wrapper (``integrate``:
 its files recorded, signals, progress bar, a stopped run's files closed) and its outcome
 (``outcome``), its steps by the integrator (``run_steps``, at a fixed or a controlled Δt) under
-the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``); a
-``Simulation``'s part (``Looping``, methods of a ``Simulation``, which is one), the run's
+the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``), the run's
 arguments checked (``check_run_arguments``) and the seconds spent compiling Warp modules
-(``compile_timer``)."""
+(``compile_timer``): plain functions of the parts they are given."""
 
 from __future__ import annotations
 
@@ -16,16 +15,12 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
-from ..core.errors import BlowUp, OutputError, SceneError, StepFailure
-from ..core.interrupts import StopSignals
-from ..integrator import Stop, trouble_line
+from ..core.errors import BlowUp, OutputError, SceneError
+from ..integrator import Stop
 from ..io.output_files import check_distinct, check_target
-from .activities import Log
 from .adaptive import Tries, steered
-from .guard import RunObserver
-from .schedules import EverySteps
-from .summary import Ledger, interrupted
-from .writers import Checkpointer, RunFiles, interrupted_attrs, run_attrs, scene_attrs
+from .summary import interrupted
+from .writers import Checkpointer, RunFiles, interrupted_attrs
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
@@ -157,80 +152,6 @@ def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
     if stop.signum is not None:
         raise interrupted(stop.signum, run.step, run.time, run.scene, output, ckp, stop.abandoned, result)
     return result
-
-
-class Looping:
-    """The steps of a ``Simulation``'s ``run`` (it is one), by its integrator (``core``), its
-    activities between them, and how it stopped; ``_compile`` the seconds compiling Warp modules
-    (``compile_timer``)."""
-
-    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step, lines=None, until_day=None) -> Stop:
-        """The run's steps to ``until_step`` (None: the scene's end; under step control to the day
-        ``until_day``) by ``run_steps`` under the run's guard (``guard.RunObserver``: the activities
-        due after each good step, progress on ``bar`` and rank 0's ``lines``; members dropped
-        where they blow up under ``blow_up`` "drop"); ``until_step`` refused under step control
-        (ValueError). Returns why the loop stopped (``Stop``)."""
-        if self.control is not None and until_step is not None:
-            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-        stop_step = self.scene.nsteps if until_step is None else until_step
-        lines = lines if self.root else None
-        drop = None if self.ensemble is None else lambda bad, step: self.ensemble.drop(bad, step, self.scene.day(step))
-        parts = (self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines)
-        observer = RunObserver(*parts, dropped=drop)
-        last_day = self.scene.days if until_day is None else until_day
-        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._describe)
-
-    def _describe(self, bad: tuple) -> str:
-        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
-        ``integrator.Stop``: a single run's (``trouble_line``), or the members bad there (their
-        states those of that step; ``StepFailure`` for a failed solve)."""
-        if self.ensemble is None:
-            day = self.time if self.control is not None else self.scene.day(bad[0])
-            return trouble_line(self.model, self.x, bad, day)
-        step, trouble, detail = bad
-        if trouble == "failure":
-            raise StepFailure(detail)
-        self.core.step = step
-        return self.ensemble.blow_up_line(step, self.time)
-
-    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
-        """A run's run files and checkpointer (paths checked; the files created on rank 0),
-        the start's gathered fields, its Courant numbers (a single run's) and its members'
-        diagnostics (None for a single run). ValueError for a user's activity under a name the
-        run gives its own."""
-        run, m = self.run_state, self.ensemble
-        bcast = self.topology.bcast if m is None else m.bcast
-        ckp = Checkpointer(run, self.write_checkpoint, bcast, self.root, output, restart_every, restart_file, overwrite)
-        series = None if m is None else ("steps", "wall_time")
-        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output, series)
-        check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
-        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
-        if m is None:
-            courant, first, more = self.courant(start), None, {}
-            attrs = run_attrs(run, self.case, self.dfi, self.device, self.topology.comm.size, history, courant)
-        else:  # the members' invariants and errors, each (time, member) in the files
-            courant, first = {}, self.diagnostics.diagnose(run.seconds(self.core.step), whole=start)
-            files.member_series = tuple(first)
-            more = {"members": m.members, "member_series": files.member_series}
-            attrs = {
-                **scene_attrs(run.scene, "ensemble", history, f"swe_sphere.{type(self).__name__}.run"),
-                **self.stepper.attrs(),
-                "device": str(self.model.topology.device),
-                **m.attrs(),
-                **({"continued_from_day": self.time} if self.core.step else {}),
-            }
-        if output is not None and self.root:
-            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
-        return files, ckp, start, courant, first
-
-    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
-        """The run's own activities while the loop runs (``own_activities``, the log after the
-        user's), a single run's stepper's solver counters read with the bad-state check."""
-        every = self.scene.log_every_steps
-        one = self.ensemble is None
-        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every and one else {}
-        return own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
 
 
 def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:

@@ -1,7 +1,7 @@
 """A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
-written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), and ``Restarts``, the methods
-``restore``, ``restore_history``, ``restore_members`` and ``write_checkpoint`` of a ``Simulation`` (which is one)."""
+written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), ``restore_run`` and
+``write_restart``, functions of the run state and arrays they are given."""
 
 from __future__ import annotations
 
@@ -37,50 +37,6 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
         return ck, ckpt.branch(ck, stepper=stepper, dt=dt, days=days), start, None, False
     # the state handed out with its t = 0 diagnostics; no second digital filter
     return ck, ckpt.continued_scene(ck, days), start, ck.initial, True
-
-
-class Restarts:
-    """A ``Simulation``'s state and history restored from a checkpoint, and its restart file
-    written (its attributes the simulation's: ``x``, ``stepper``, ``step``, ``counters``,
-    ``initial``, ``control``, ``topology``, ...)."""
-
-    def restore(self, ck: ckpt.Checkpoint) -> None:
-        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint (a
-        single run's; ``CheckpointError`` for a state of another grid)."""
-        try:
-            # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            x = self.topology.distribute(ck.x, 3, "checkpoint state")
-        except ValueError as err:
-            raise CheckpointError(str(err)) from None
-        self.x.assign(x)
-        self.restore_history(ck)
-
-    def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """The stepper history, counters, step control and t = 0 invariants of a checkpoint (the state
-        is already ``ck.x``)."""
-        restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
-        self.initial = ck.initial
-
-    def restore_members(self, ck: ckpt.Checkpoint) -> None:
-        """An ensemble's ``restore_history``: every member's state and stepper history (``Members.restore``)."""
-        restore_run(self.run_state, ck, lambda: self.ensemble.restore(ck))
-
-    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
-        """Write a restart file of the current step (see ``checkpoint``): whole-grid
-        fields, gathered from every rank (call on all), written by rank 0;
-        ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
-        state and its stepper's history, the member count, the layout and the variants."""
-        kept = {"overwrite": overwrite, "restart_every": restart_every}
-        if self.ensemble is not None:
-            parts = self.ensemble.restart_parts()
-            if parts is None:
-                return Path(path)
-            x, state, initial, grid = parts
-            return write_restart(path, self.run_state, x, state, initial, grid, members=self.members, **kept)
-        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
-        if not self.root:
-            return Path(path)
-        return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
 
 
 def restore_run(run, ck: ckpt.Checkpoint, restore) -> None:

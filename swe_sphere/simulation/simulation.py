@@ -1,11 +1,13 @@
 """The simulation: a scene's model, stepper and state, and the loop that steps them, on
 Oceananigans' pattern: one short loop (``Simulation.run``) and around its steps a small part each
-(the package's doc lists them). Its run loop (``loop.Looping``), restarts (``restart.Restarts``)
-and driving from Python (``drive.Driven``) are its own methods, in those modules; ``build`` makes
-its parts, and the state's diagnostics are a ``state_diagnostics`` component (``diagnostics``)."""
+(the package's doc lists them), of one member or N (issue 116: one driver). Its run loop, restarts
+and driving from Python are its own methods over the functions of ``loop`` and ``restart`` (no
+mixins); ``build`` makes a single run's parts, ``members.Members`` N members', and the state's
+diagnostics are a component (``diagnostics``: ``state_diagnostics`` or the members')."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from operator import attrgetter
@@ -14,26 +16,40 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..config.scene import Scene, resolve_scene
-from ..core.arguments import array_argument, comm_argument, flag_argument, got, mapping_argument
+from ..config.parts import scene_stepper
+from ..config.scene import Scene, resolve_scene, with_days
+from ..core.arguments import (
+    array_argument,
+    callable_argument,
+    comm_argument,
+    flag_argument,
+    got,
+    mapping_argument,
+    number_argument,
+)
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
+from ..core.clock import is_interval
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
+from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError, StepFailure
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
-from ..integrator import FixedDt, Integrator, Unit, forwarded
+from ..integrator import FixedDt, Integrator, Stop, Unit, forwarded, trouble_line
 from ..integrator.control import StepControl
+from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.units import member_step
+from . import checkpoint as ckpt
+from .activities import Log, add_callback
 from .build import ON_ROOT, Built, build
 from .checkpoint import Checkpoint
-from .drive import Driven
-from .loop import Looping, check_run_arguments, compile_timer, integrate, outcome
+from .guard import RunObserver
+from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
 from .members import Members, member_starts
-from .restart import Restarts, continued
+from .restart import continued, restore_run, write_restart
 from .run_state import RunState
-from .schedules import at_its_end
+from .schedules import EverySteps, at_its_end, steps_of
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
+from .writers import Checkpointer, RunFiles, run_attrs, scene_attrs
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
@@ -44,7 +60,7 @@ def _delegated(method, owner):
     return functools.wraps(method)(lambda sim, *args, **kw: method(owner(sim), *args, **kw))
 
 
-class Simulation(Driven, Restarts, Looping):
+class Simulation:
     """Build the grid, case, model and stepper of a scene, of one member or N; ``run`` integrates it.
 
     A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
@@ -269,7 +285,7 @@ class Simulation(Driven, Restarts, Looping):
             self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
         self.run_state = RunState(self.core, scene)
 
-    # -- restarts and branches (``restart.Restarts``); driven from Python: ``drive.Driven`` --
+    # -- restarts and branches (``restart``)
     @classmethod
     def from_checkpoint(
         cls,
@@ -533,3 +549,317 @@ class Simulation(Driven, Restarts, Looping):
         done = {"courant": courant, "output": output, "blowup": stop.blowup, "checkpoint": ckp.written, **times}
         result = ledger.result(self.core.step, files.history, **done)
         return outcome(stop, self.run_state, output, ckp, result)
+
+    # -- driven from Python (Oceananigans' ``Simulation``: step, inspect, call back); Δt fitted to the
+    # user's intervals where it is the simulation's own (``_own_dt``: not given, restored or stated in a Scene)
+
+    def fitted_dt(self, every: float, what: str = "every") -> tuple:
+        """(scene, stepper) at Δt shortened to the largest that divides ``every`` (days), the
+        run, its output intervals (where shorter than the run) and the intervals of the
+        activities scheduled in days: the scene with its clock fitted to them (``Clock.fitted``;
+        a note in its ``notes`` naming ``what``) and the stepper to step at it: one built anew
+        at that Δt where Δt is folded into what it builds (``variable_dt`` False), else this one
+        (its ``set_dt`` called where the pair is used, ``use_dt``). Nothing of the simulation
+        written. ``SceneError`` (one line) after the first step, for ``every`` <= 0, and where
+        that Δt is less than half the present one (an interval of odd decimals: give a dt, or an
+        interval of whole steps)."""
+        s = self.scene
+        if self.core.step != 0 or not is_interval(every):
+            raise SceneError(
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.core.step})"
+            )
+        outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
+        days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
+        spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
+        clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
+        if clock.dt < s.dt / 2:
+            raise SceneError(
+                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
+                f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
+                "or an interval of whole steps"
+            )
+        note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
+        scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
+        # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
+        return scene, self.stepper if self.stepper.variable_dt else scene_stepper(scene, self.model)
+
+    def use_dt(self, scene, stepper) -> None:
+        """Step on at ``scene``'s Δt with ``stepper`` (``fitted_dt``'s pair): the one place a
+        simulation's Δt is rewritten. This stepper's Δt set in place (``set_dt``: what was
+        built for the old Δt dropped), a new one prepared from the state; the activities
+        scheduled in days rescheduled in its steps and the start's diagnostics taken again
+        (their Courant numbers)."""
+        if stepper is self.stepper:
+            stepper.set_dt(scene.dt)
+        else:
+            stepper.prepare(self.x)
+        self.scene, self.stepper = scene, stepper
+        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
+            if getattr(activity.schedule, "days", None) is not None:
+                activity.schedule = self.every(days=activity.schedule.days)
+        self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
+
+    def _steps_in(self, days: float, what: str) -> int:
+        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
+        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
+        if self._own_dt and self.core.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
+            self.fit_dt(days, what)
+        return steps_of(self.scene, days, f"the interval {what}")
+
+    def _fixed_dt(self, what: str) -> None:
+        """Refuse (``ArgumentError``) ``what`` (a call by whole steps) under step control."""
+        if self.control is not None:
+            raise ArgumentError(
+                f"{what} steps a fixed dt: under step control ([time] control) the controller chooses the "
+                "steps, and a run goes to its end (Simulation.run)"
+            )
+
+    def fit_dt(self, every: float, what: str = "every") -> tuple:
+        """Shorten Δt before the first step (``fitted_dt``, with its ``SceneError``; then ``use_dt``:
+        set on the stepper, or one built anew, the activities' steps and the start's diagnostics
+        following); a note in ``scene.notes`` naming ``what``. Returns the new (scene, stepper)."""
+        scene, stepper = self.fitted_dt(every, what)
+        self.use_dt(scene, stepper)
+        return scene, stepper
+
+    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
+        """The schedule of an activity (``activities``) due after every step that is a
+        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
+        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
+        caller has (under step control, of the accepted steps). ``ArgumentError`` (a ValueError)
+        for not exactly one of the two, or ``days`` under step control; ``SceneError`` for an
+        interval that is not whole steps."""
+        if (days is None) == (steps is None):
+            raise ArgumentError("an interval needs exactly one of every_steps, every_days")
+        if steps is not None and not (isinstance(steps, int) and steps >= 1):
+            raise ArgumentError(f"every_steps must be an integer >= 1 (got {steps!r})")
+        if days is not None and self.control is not None:
+            raise ArgumentError("every_days: under step control the steps are the controller's (give every_steps)")
+        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
+
+    def add_callback(
+        self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
+    ) -> None:
+        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
+        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
+        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
+        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
+        output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
+        callable, ``name`` not a str, and as ``every``."""
+        callable_argument("fn", fn, "a callable fn(sim)", SceneError)
+        if name is not None and not isinstance(name, str):
+            raise SceneError(f"name must be a str or None (got {got(name)})")
+        add_callback(self.activities, fn, self.every(days=every_days, steps=every_steps), name)
+
+    def advance(self, days: float) -> RunResult:
+        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
+        signals and callbacks as there; no output file); under step control the steps land
+        on the day reached. Past the scene's end the run is lengthened (``config.with_days``).
+
+        Parameters
+        ----------
+        days : float
+            Model days, a whole number of steps at a fixed Δt.
+
+        Returns
+        -------
+        RunResult
+            Of these steps.
+
+        Raises
+        ------
+        ValueError
+            ``days`` is not a whole number of steps (at a fixed Δt), or not a number ≥ 0.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        number_argument("days", days, "days", low=0.0, error=SceneError)
+        if self.control is not None:  # Δt the controller's, landing on the day reached
+            end = self.time + days
+            if end > self.scene.days:
+                self.scene = with_days(self.scene, end, "the scene's")
+            return self.run(None, until_day=end)
+        target = self.core.step + (self._steps_in(days, "days") if days else 0)
+        if target > self.scene.nsteps:
+            self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
+        return self.run(None, until_step=target)
+
+    def steps(self, every: float):
+        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
+        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
+        multiple at or before the end.
+
+        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
+        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
+        has been taken, a Δt that does not divide ``every`` is first shortened to the
+        largest that divides ``every``, the run, its output intervals and the callbacks'
+        (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
+
+        Parameters
+        ----------
+        every : float
+            Model days between yields, a whole number of steps.
+
+        Yields
+        ------
+        float
+            The model time reached (days since t = 0).
+
+        Raises
+        ------
+        ValueError
+            ``every`` is not then a whole number of steps (naming a Δt that was given).
+        ArgumentError
+            Under step control, as ``advance``.
+        BlowUp, StepFailure, Interrupted
+            As ``run``.
+        """
+        self._fixed_dt("Simulation.steps")
+        per = self._steps_in(every, "every")
+        while (target := (self.core.step // per + 1) * per) <= self.scene.nsteps:
+            self.run(None, until_step=target)
+            yield self.time
+
+    def state(self, remap: float | None = None):
+        """The current state as an ``xarray.Dataset``; call on every rank.
+
+        Parameters
+        ----------
+        remap : float, optional
+            Grid spacing in degrees: the state on a regular lat-lon grid
+            (``remap.remap_dataset``, with h_surface = h + hs). None: on the nodes.
+
+        Returns
+        -------
+        xarray.Dataset or None
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
+            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
+            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
+            than 0.
+
+        Raises
+        ------
+        ValueError
+            A ``remap`` spacing that does not divide 180 degrees.
+        """
+        whole = self.diagnostics.gather_fields(divergence=True)
+        if not self.root:
+            return None
+        fields = {k: getattr(whole, k) for k in OUTPUT_FIELDS}
+        attrs = {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.core.step}
+        ds = node_dataset(self.grid, self.hs, self.time, fields, attrs)
+        if remap is None:
+            return ds
+        from ..io.remap import remap_dataset  # here: xarray and scipy.sparse, for the Python API's maps only
+
+        return remap_dataset(ds, remap)
+
+    # -- restarts: its state and history restored from a checkpoint, its restart file written
+
+    def restore(self, ck: ckpt.Checkpoint) -> None:
+        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint (a
+        single run's; ``CheckpointError`` for a state of another grid)."""
+        try:
+            # ck.x on rank 0 only (``checkpoint.read_on_root``)
+            x = self.topology.distribute(ck.x, 3, "checkpoint state")
+        except ValueError as err:
+            raise CheckpointError(str(err)) from None
+        self.x.assign(x)
+        self.restore_history(ck)
+
+    def restore_history(self, ck: ckpt.Checkpoint) -> None:
+        """The stepper history, counters, step control and t = 0 invariants of a checkpoint (the state
+        is already ``ck.x``)."""
+        restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
+        self.initial = ck.initial
+
+    def restore_members(self, ck: ckpt.Checkpoint) -> None:
+        """An ensemble's ``restore_history``: every member's state and stepper history (``Members.restore``)."""
+        restore_run(self.run_state, ck, lambda: self.ensemble.restore(ck))
+
+    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+        """Write a restart file of the current step (see ``checkpoint``): whole-grid
+        fields, gathered from every rank (call on all), written by rank 0;
+        ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
+        state and its stepper's history, the member count, the layout and the variants."""
+        kept = {"overwrite": overwrite, "restart_every": restart_every}
+        if self.ensemble is not None:
+            parts = self.ensemble.restart_parts()
+            if parts is None:
+                return Path(path)
+            x, state, initial, grid = parts
+            return write_restart(path, self.run_state, x, state, initial, grid, members=self.members, **kept)
+        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
+        if not self.root:
+            return Path(path)
+        return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
+
+    # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities
+
+    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step, lines=None, until_day=None) -> Stop:
+        """The run's steps to ``until_step`` (None: the scene's end; under step control to the day
+        ``until_day``) by ``run_steps`` under the run's guard (``guard.RunObserver``: the activities
+        due after each good step, progress on ``bar`` and rank 0's ``lines``; members dropped
+        where they blow up under ``blow_up`` "drop"); ``until_step`` refused under step control
+        (ValueError). Returns why the loop stopped (``Stop``)."""
+        if self.control is not None and until_step is not None:
+            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
+        stop_step = self.scene.nsteps if until_step is None else until_step
+        lines = lines if self.root else None
+        drop = None if self.ensemble is None else lambda bad, step: self.ensemble.drop(bad, step, self.scene.day(step))
+        parts = (self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines)
+        observer = RunObserver(*parts, dropped=drop)
+        last_day = self.scene.days if until_day is None else until_day
+        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._describe)
+
+    def _describe(self, bad: tuple) -> str:
+        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
+        ``integrator.Stop``: a single run's (``trouble_line``), or the members bad there (their
+        states those of that step; ``StepFailure`` for a failed solve)."""
+        if self.ensemble is None:
+            day = self.time if self.control is not None else self.scene.day(bad[0])
+            return trouble_line(self.model, self.x, bad, day)
+        step, trouble, detail = bad
+        if trouble == "failure":
+            raise StepFailure(detail)
+        self.core.step = step
+        return self.ensemble.blow_up_line(step, self.time)
+
+    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
+        """A run's run files and checkpointer (paths checked; the files created on rank 0),
+        the start's gathered fields, its Courant numbers (a single run's) and its members'
+        diagnostics (None for a single run). ValueError for a user's activity under a name the
+        run gives its own."""
+        run, m = self.run_state, self.ensemble
+        bcast = self.topology.bcast if m is None else m.bcast
+        ckp = Checkpointer(run, self.write_checkpoint, bcast, self.root, output, restart_every, restart_file, overwrite)
+        series = None if m is None else ("steps", "wall_time")
+        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output, series)
+        check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
+        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
+            start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
+        if m is None:
+            courant, first, more = self.courant(start), None, {}
+            attrs = run_attrs(run, self.case, self.dfi, self.device, self.topology.comm.size, history, courant)
+        else:  # the members' invariants and errors, each (time, member) in the files
+            courant, first = {}, self.diagnostics.diagnose(run.seconds(self.core.step), whole=start)
+            files.member_series = tuple(first)
+            more = {"members": m.members, "member_series": files.member_series}
+            attrs = {
+                **scene_attrs(run.scene, "ensemble", history, f"swe_sphere.{type(self).__name__}.run"),
+                **self.stepper.attrs(),
+                "device": str(self.model.topology.device),
+                **m.attrs(),
+                **({"continued_from_day": self.time} if self.core.step else {}),
+            }
+        if output is not None and self.root:
+            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
+        return files, ckp, start, courant, first
+
+    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
+        """The run's own activities while the loop runs (``own_activities``, the log after the
+        user's), a single run's stepper's solver counters read with the bad-state check."""
+        every = self.scene.log_every_steps
+        one = self.ensemble is None
+        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every and one else {}
+        return own_activities(self.activities, files, ckp, self.stepper if one else None, **more)

@@ -20,7 +20,7 @@ from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
 from ..core.mpi import from_root
-from ..integrator import FixedDt, Integrator, Observer, Rewind, Unit, trouble_line
+from ..integrator.core import FixedDt, Integrator, Observer, Rewind, Unit, trouble_line
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier

@@ -6,8 +6,8 @@ asked by everything that counts steps: the scene's schedule checks, the output a
 steps (``simulation.schedules``), the Python drive's intervals and its fitted Δt
 (``Simulation.fitted_dt``: a new clock, made the run's by ``use_dt`` alone), the run file's
 times (``day``). Δt is decided in two places: the scene's step rule, and the one loop's Δt
-policy (``integrator.FixedDt``, the plan's Δt or a run's replayed, ``StepTimes``;
-``integrator.ControlledDt``, a step control's accepted steps); ``fitted`` here is the
+policy (``integrator.core.FixedDt``, the plan's Δt or a run's replayed, ``StepTimes``;
+``integrator.core.ControlledDt``, a step control's accepted steps); ``fitted`` here is the
 arithmetic both use for a Δt that divides given intervals (the step rule, ``fitted_dt``, the
 sweep's ``dt_for_day``), deciding nothing alone. Oceananigans' ``Clock`` (time,
 iteration, last Δt) and HOMME's ``timestep_make_parameters_consistent`` are the models.

@@ -82,7 +82,7 @@ ATOL_FLOOR = 1e-12
 
 class Balance:
     """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
-    with rtol 0) on ``unit``'s model and grid (an ``integrator.Unit``), held to ``fraction`` (``SceneControl.balance``).
+    with rtol 0) on ``unit``'s model and grid (an ``integrator.core.Unit``), held to ``fraction`` (``SceneControl.balance``).
     ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
     scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
     then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
@@ -143,7 +143,7 @@ class _Ahead:
 
 class StepControl:
     """The step control of ``control`` (a ``SceneControl``) over ``stepper`` (``variable_dt``;
-    under "error" with an ``error_estimate``) on ``unit`` (an ``integrator.Unit``: its model, stepper,
+    under "error" with an ``error_estimate``) on ``unit`` (an ``integrator.core.Unit``: its model, stepper,
     state x (3, N) and last good state ``start``, a try's start), from model day ``start_day`` (the
     scene's: 0, or a branch's day). The first proposal is the stepper's Δt. Counts: ``accepted``,
     ``rejected``, the smallest, summed and largest accepted Δt (s); ``history``: (time (s), Δt (s),

@@ -22,7 +22,7 @@ from ..core.arguments import got
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
-from ..integrator import Unit
+from ..integrator.core import Unit
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS
 from .grid import MemberGrid

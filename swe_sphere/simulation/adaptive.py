@@ -5,8 +5,8 @@ its names here as the run knows them) steered to the days the run's activities a
 from __future__ import annotations
 
 from ..core.constants import DAY
-from ..integrator import ControlledDt
 from ..integrator.control import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl, Tries, on_grid
+from ..integrator.core import ControlledDt
 from .schedules import AtDays
 
 __all__ = ["ATOL_FLOOR", "BALANCE_EVERY", "CAP_EVERY", "DT_GRID", "StepControl", "Tries", "on_grid", "steered"]
@@ -14,7 +14,7 @@ __all__ = ["ATOL_FLOOR", "BALANCE_EVERY", "CAP_EVERY", "DT_GRID", "StepControl",
 
 def steered(control: StepControl, last_day: float, activities: dict) -> ControlledDt:
     """The Δt policy of a run (``loop.run_steps``: a ``Simulation``'s, of one member or many) under
-    ``control`` (a ``StepControl``): accepted steps (``integrator.ControlledDt``) to each day an
+    ``control`` (a ``StepControl``): accepted steps (``integrator.core.ControlledDt``) to each day an
     ``AtDays`` activity of ``activities`` is due at (output and restart times) up to ``last_day``
     and ``last_day`` in turn, each landed on exactly, a try launched ahead only where no activity
     of whole steps (``EverySteps``, ``AtSteps``: they read x) is due after the step."""

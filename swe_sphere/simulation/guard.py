@@ -1,12 +1,12 @@
-"""What a run adds to the integrator's guard (``integrator.Integrator``): where its blocks end,
+"""What a run adds to the integrator's guard (``integrator.core.Integrator``): where its blocks end,
 its signals, counts and activities (``RunObserver``); a blow-up's line is the integrator's
-(``integrator.trouble_line``)."""
+(``integrator.core.trouble_line``)."""
 
 from __future__ import annotations
 
 import time
 
-from ..integrator import Observer
+from ..integrator.core import Observer
 from .activities import call_due
 from .schedules import next_multiple
 
@@ -21,7 +21,7 @@ class RunObserver(Observer):
     progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of steps, its
     states flagged on the device and read once at its end (the integrator's guard: its module
     doc), ends every ``every`` steps (``Simulation.check_every``) and at each step an activity is
-    due (``block_end``). Under step control ``steered`` (an ``integrator.ControlledDt``): each
+    due (``block_end``). Under step control ``steered`` (an ``integrator.core.ControlledDt``): each
     accepted step a block, to the policy's last day, its state vouched for where the control's
     norm or Courant pass found it good (``StepControl.vouched``), not abandoned by a signal (a
     try's state is the control's). ``timed`` False: no first step alone and no steps the wall

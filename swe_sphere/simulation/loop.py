@@ -16,7 +16,7 @@ from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
 from ..core.errors import BlowUp, OutputError, SceneError
-from ..integrator import Stop
+from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
 from .adaptive import Tries, steered
 from .summary import interrupted

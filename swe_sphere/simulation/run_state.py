@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from ..config.scene import Scene
 from ..core.constants import DAY
-from ..integrator import Integrator, forwarded
+from ..integrator.core import Integrator, forwarded
 
 
 @dataclass

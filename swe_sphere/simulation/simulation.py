@@ -33,8 +33,8 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError, StepFailure
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
-from ..integrator import FixedDt, Integrator, Stop, Unit, forwarded, trouble_line
 from ..integrator.control import StepControl
+from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded, trouble_line
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.units import member_step
 from . import checkpoint as ckpt
@@ -128,7 +128,7 @@ class Simulation:
     check_every : int
         ``run`` reads the device's bad-state check back once a block of so many steps
         (``core.backend.CHECK_EVERY_STEPS``, 64), a failed block re-run one
-        checked step at a time (``integrator.Integrator``; the same bits either way).
+        checked step at a time (``integrator.core.Integrator``; the same bits either way).
     dfi : FilterResult or None
         The digital-filter initialization's result, when the scene has one
         (``initialization``) and no ``start`` was given; its cost is in ``setup_time``.
@@ -374,7 +374,7 @@ class Simulation:
     stability_warning = _delegated(StateDiagnostics.stability_warning, attrgetter("diagnostics"))
     largest_dt_within_limit = _delegated(StateDiagnostics.largest_dt_within_limit, attrgetter("diagnostics"))
 
-    # -- the step: the integrator's (``integrator.Integrator``, one unit of one member) and its graphs
+    # -- the step: the integrator's (``integrator.core.Integrator``, one unit of one member) and its graphs
     step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
     stepper = forwarded("core.units.0.stepper", "The stepper (``steppers``), prepared on ``x``.")
     x = forwarded("core.units.0.x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
@@ -465,7 +465,7 @@ class Simulation:
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        Blocks of steps by the integrator, each checked by its guard (``integrator.Integrator``), Δt
+        Blocks of steps by the integrator, each checked by its guard (``integrator.core.Integrator``), Δt
         the fixed one's or under step control the controller's (``adaptive.steered``), then the activities due (``activities``): the run file and its
         ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
 
@@ -814,7 +814,7 @@ class Simulation:
 
     def _describe(self, bad: tuple) -> str:
         """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
-        ``integrator.Stop``: a single run's (``trouble_line``), or the members bad there (their
+        ``integrator.core.Stop``: a single run's (``trouble_line``), or the members bad there (their
         states those of that step; ``StepFailure`` for a failed solve)."""
         if self.ensemble is None:
             day = self.time if self.control is not None else self.scene.day(bad[0])

@@ -8,7 +8,7 @@ Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load,
 run's error in the frontier's quantity and its median CPU seconds a simulated day) and, for Galewsky, pySEs's point as
 issue 63 measured it (not rerun: a cited figure, labelled so). The figure is the frontier's own
 (``studies.frontier.frontier_figure``); peers_<case>.csv is what ``swe-sphere frontier --peers``
-reads, so a user's frontier can show the same points. TC2 and TC6 have no peers' points: their
+reads, so a user's frontier can show the same points. TC2, TC6 and TC7 have no peers' points: their
 figures are the frontier's alone.
 
 ``--merge CASE FRONTIER_CSV...`` first folds sub-ladders' ``frontier.csv`` files (``swe-sphere
@@ -62,6 +62,7 @@ CASES = {
         + [("peer_dinosaur_tc6_fine.json", "swe_sphere kgu35, runs beside Dinosaur", "{t}", "swe_sphere ")],
     ),
     "tc2": ("l2_h_surface", []),  # no peer has run it
+    "tc7": ("l2_h_surface", []),  # case 7 (tc7_era_january): no peer has run it
 }
 CITED = {  # issue 63's table, not rerun here: (model, label, error, CPU s a simulated day)
     "galewsky": [("pySEs 0.1.3, issue 63's figure (not rerun)", "ne16 np4", 0.76, 18.9)],

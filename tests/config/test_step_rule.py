@@ -65,7 +65,9 @@ def test_a_cut_past_a_floats_range_says_so():
 def test_a_hyperviscosity_past_a_floats_range_is_refused():
     """galewsky at an e-folding time of 1e-300 h: ν ∝ a⁴ / τ raised OverflowError (a planet of
     1e308 m did too; [planet] now refuses it, core/constants PLANET_RANGE)."""
-    with pytest.raises(SceneError, match=r"^hyperviscosity.nu on ne=12 np=8 and a planet of radius 6.37122e\+06 m is past"):
+    with pytest.raises(
+        SceneError, match=r"^hyperviscosity.nu on ne=12 np=8 and a planet of radius 6.37122e\+06 m is past"
+    ):
         load_scene("galewsky", overrides={"hyperviscosity.efold_hours": 1e-300})
 
 

@@ -150,6 +150,8 @@ def load_scene(
     restart_every: float | None = None,
     np=None,
     precision: str | None = None,
+    members: int | None = None,
+    **tables,
 ) -> Scene:
     """Read, validate and resolve a scene file, applying command-line overrides.
 
@@ -194,6 +196,12 @@ def load_scene(
     restart_every : float, optional
         The run's restart interval (days, ``--restart-every``): a dt the scene scales itself is
         shortened to divide it too (a note says so); checked by the run, not here.
+    members : int, optional
+        The scene's [ensemble] ``members`` (``--members``; ``ensemble={"members": N}`` alike, not
+        both): a scene of N members (``Simulation`` of it steps them, as with its ``members``).
+    **tables
+        Any scene value by its table, as ``swe_sphere.run`` takes it (``ensemble={"members": 2}``,
+        ``hyperviscosity={"nu": 5e14}``, ``terms=[...]``): merged into ``overrides``.
 
     Returns
     -------
@@ -210,7 +218,14 @@ def load_scene(
     instance_argument(
         "path", path, (str, os.PathLike), "a scene file's path or a bundled scene's name (str)", SceneError
     )
-    overrides = {} if overrides is None else flat_overrides(mapping_argument("overrides", overrides, error=SceneError))
+    overrides = {} if overrides is None else mapping_argument("overrides", overrides, error=SceneError)
+    overrides = flat_overrides(overrides) | flat_overrides(tables)
+    if members is not None:
+        if overrides.get("ensemble.members", members) != members:
+            raise SceneError(
+                f"members = {members} and ensemble.members = {overrides['ensemble.members']}: give one of them"
+            )
+        overrides["ensemble.members"] = members
     if np is not None:
         if np_ is not None:
             raise SceneError(f"np = {np} and np_ = {np_}: give one of them (np_ is np's other name)")

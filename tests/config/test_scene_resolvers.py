@@ -364,6 +364,25 @@ def test_the_nested_view_groups_the_flat_fields_by_table():
         scene.time.dt = 60.0
 
 
+def test_load_scene_takes_an_ensemble_and_members_as_run_does():
+    # issue 117 item 8: Python's TypeError before; a table as ``run``'s keyword, members its count
+    plain = load_scene("tc2_steady", ne=2)
+    assert plain.ensemble is None
+    table = load_scene("tc2_steady", ne=2, ensemble={"members": 2, "perturbation": 0.5})
+    assert table.ensemble == {"members": 2, "perturbation": 0.5, "seed": 0}
+    counted = load_scene("tc2_steady", ne=2, members=3)
+    assert counted.ensemble == {"members": 3, "perturbation": 0.0, "seed": 0}
+    both = load_scene("tc2_steady", ne=2, members=3, ensemble={"seed": 7})
+    assert both.ensemble == {"members": 3, "perturbation": 0.0, "seed": 7}
+    # the other tables and values as run takes them, merged into the file's tables
+    out = load_scene("tc2_steady", ne=2, output={"every_days": 0.5}, overrides={"output.fields": ["h"]})
+    assert out.output == SceneOutput(0.5, 0, ("h",), ()) and plain.output.every_days == 1.0
+    with pytest.raises(SceneError, match=r"^members = 2 and ensemble.members = 3: give one of them"):
+        load_scene("tc2_steady", members=2, ensemble={"members": 3})
+    with pytest.raises(SceneError, match=r"ensemble.members must be an integer >= 1 \(got 0\)"):
+        load_scene("tc2_steady", members=0)
+
+
 @pytest.mark.parametrize(
     ("override", "line"),
     [

@@ -26,8 +26,9 @@ import time
 import numpy as np
 import warp as wp
 
+from ..core.clock import Clock
 from ..core.constants import DAY
-from ..core.errors import StepFailure
+from ..core.errors import SceneError, StepFailure
 from ..core.graphs import GraphedSteps
 from ..core.interrupts import StepAbandoned
 from ..model.shallow_water import ShallowWater
@@ -163,13 +164,32 @@ def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
 
 class FixedDt:
     """The Δt policy of a fixed Δt: each step at its stepper's Δt, the clock's (a scene's, or one
-    fitted to the output times: ``Clock.fitted``, ``Simulation.fitted_dt``), taken by ``step(unit,
+    fitted to a driver's output times before the first step: ``fitted``), taken by ``step(unit,
     j, watch)`` (default ``graphed_step``); with ``times`` (a ``core.clock.StepTimes``) a run's
     Δt and model times replayed, step k's (t0_k, Δt_k) and phase k set first (the gradient's
-    sweeps: a fixed run's, or a controlled run's history)."""
+    sweeps: a fixed run's, or a controlled run's history). ``clock`` the ``core.clock.Clock`` a
+    fitted policy steps at and ``note`` what fitting it did (None: the stepper's Δt as built)."""
 
-    def __init__(self, step=graphed_step, times=None):
-        self.step, self.times = step, times
+    def __init__(self, step=graphed_step, times=None, clock=None, note=None):
+        self.step, self.times, self.clock, self.note = step, times, clock, note
+
+    @classmethod
+    def fitted(cls, clock: Clock, every: float, what: str, *spans: float, step=graphed_step) -> FixedDt:
+        """The policy of ``clock``'s Δt (a scene's) shortened to the longest that divides ``every``
+        (days, the interval a driver was asked for, named ``what``) and ``spans`` (days: the run,
+        its output intervals, its activities'; ``Clock.fitted``), its clock's source and ``note``
+        saying so. ``SceneError`` (one line) where that Δt is less than half ``clock``'s (an
+        interval of odd decimals: give a dt, or an interval of whole steps)."""
+        fit = clock.fitted(every, *spans, source=f"{clock.source}, shortened to divide {what} = {every:g} days")
+        if fit.dt < clock.dt / 2:
+            raise SceneError(
+                f"{what} = {every:g} days is not a whole number of steps of dt = {clock.dt:g} s, and the longest dt "
+                f"that divides it, the run and its output intervals is {fit.dt:g} s, less than half: give a dt, "
+                "or an interval of whole steps"
+            )
+        return cls(
+            step, clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to divide {what} = {every:g} days"
+        )
 
     def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
         """Step j + 1 of ``unit``, its state flagged on the device where ``watch``; its ``StepStats``."""
@@ -177,6 +197,22 @@ class FixedDt:
             self.times.set(unit.stepper, j)
             unit.stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's
         return self.step(unit, j, watch)
+
+    def stepper_for(self, unit: Unit, build):
+        """The stepper ``unit`` steps at this policy's Δt with, nothing written: its own where its Δt
+        changes in place (``variable_dt``; set by ``use``), else ``build(unit.model)`` (Δt folded
+        into what it builds: a Helmholtz operator, a history's weights, element levels)."""
+        return unit.stepper if unit.stepper.variable_dt else build(unit.model)
+
+    def use(self, unit: Unit, stepper) -> None:
+        """``unit`` steps on at this policy's Δt with ``stepper`` (``stepper_for``'s): its own Δt
+        set in place (``set_dt``: what was built for the old Δt dropped), or a new one prepared
+        from the unit's state."""
+        if stepper is unit.stepper:
+            stepper.set_dt(self.clock.dt)
+        else:
+            stepper.prepare(unit.x)
+            unit.stepper = stepper
 
 
 class ControlledDt:

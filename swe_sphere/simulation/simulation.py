@@ -556,13 +556,13 @@ class Simulation:
     def fitted_dt(self, every: float, what: str = "every") -> tuple:
         """(scene, stepper) at Δt shortened to the largest that divides ``every`` (days), the
         run, its output intervals (where shorter than the run) and the intervals of the
-        activities scheduled in days: the scene with its clock fitted to them (``Clock.fitted``;
-        a note in its ``notes`` naming ``what``) and the stepper to step at it: one built anew
-        at that Δt where Δt is folded into what it builds (``variable_dt`` False), else this one
-        (its ``set_dt`` called where the pair is used, ``use_dt``). Nothing of the simulation
-        written. ``SceneError`` (one line) after the first step, for ``every`` <= 0, and where
-        that Δt is less than half the present one (an interval of odd decimals: give a dt, or an
-        interval of whole steps)."""
+        activities scheduled in days: the running policy's (``integrator.core.FixedDt.fitted``),
+        the scene with its clock (a note in its ``notes`` naming ``what``) and the stepper to
+        step at it: one built anew at that Δt where Δt is folded into what it builds
+        (``variable_dt`` False), else this one (its ``set_dt`` called where the pair is used,
+        ``use_dt``). Nothing of the simulation written. ``SceneError`` (one line) after the first
+        step, for ``every`` <= 0, and where that Δt is less than half the present one (an
+        interval of odd decimals: give a dt, or an interval of whole steps)."""
         s = self.scene
         if self.core.step != 0 or not is_interval(every):
             raise SceneError(
@@ -570,30 +570,22 @@ class Simulation:
             )
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-        spans = (every, s.run_days, *(d for d in outputs if d < s.run_days), *days)
-        clock = s.clock.fitted(*spans, source=f"{s.dt_source}, shortened to divide {what} = {every:g} days")
-        if clock.dt < s.dt / 2:
-            raise SceneError(
-                f"{what} = {every:g} days is not a whole number of steps of dt = {s.dt:g} s, and the longest dt "
-                f"that divides it, the run and its output intervals is {clock.dt:g} s, less than half: give a dt, "
-                "or an interval of whole steps"
-            )
-        note = f"dt shortened from {s.dt:g} s to {clock.dt:g} s to divide {what} = {every:g} days"
-        scene = dataclasses.replace(s, dt=clock.dt, notes=(*s.notes, note), dt_source=clock.source)
-        # Δt folded into what it builds (a Helmholtz operator, a history's weights, element levels): anew
-        return scene, self.stepper if self.stepper.variable_dt else scene_stepper(scene, self.model)
+        spans = (s.run_days, *(d for d in outputs if d < s.run_days), *days)
+        policy = FixedDt.fitted(s.clock, every, what, *spans, step=self.core.policy.step)
+        scene = dataclasses.replace(s, dt=policy.clock.dt, notes=(*s.notes, policy.note), dt_source=policy.clock.source)
+        return scene, policy.stepper_for(self.core.units[0], functools.partial(scene_stepper, scene))
 
     def use_dt(self, scene, stepper) -> None:
-        """Step on at ``scene``'s Δt with ``stepper`` (``fitted_dt``'s pair): the one place a
-        simulation's Δt is rewritten. This stepper's Δt set in place (``set_dt``: what was
-        built for the old Δt dropped), a new one prepared from the state; the activities
-        scheduled in days rescheduled in its steps and the start's diagnostics taken again
-        (their Courant numbers)."""
-        if stepper is self.stepper:
-            stepper.set_dt(scene.dt)
-        else:
-            stepper.prepare(self.x)
-        self.scene, self.stepper = scene, stepper
+        """Step on at ``scene``'s Δt (``fitted_dt``'s pair), the one place a simulation's Δt is
+        rewritten: the running policy's at it (``FixedDt.use``), the first unit's stepper
+        ``stepper``, every other unit's its own or one built anew alike; the activities scheduled
+        in days rescheduled in its steps and the start's diagnostics taken again (their Courant
+        numbers)."""
+        policy = FixedDt(self.core.policy.step, clock=scene.clock)
+        build = functools.partial(scene_stepper, scene)
+        for i, unit in enumerate(self.core.units):
+            policy.use(unit, stepper if i == 0 else policy.stepper_for(unit, build))
+        self.core.policy, self.scene = policy, scene
         for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
             if getattr(activity.schedule, "days", None) is not None:
                 activity.schedule = self.every(days=activity.schedule.days)

@@ -94,3 +94,20 @@ def test_one_driver_for_one_member_and_many():
         assert isinstance(ens, Simulation) and ens.time == 0.0 and ens.states().shape == starts.shape
     with pytest.raises(ArgumentError, match=r"^set_states: a run of members"):
         one.set_states(starts)
+
+
+@pytest.mark.parametrize("stepper", ["kgu35", "leapfrog"])
+def test_members_in_turn_fit_their_own_dt_alike(stepper):
+    """Fitting Δt to ``advance``'s interval (the running policy's, ``FixedDt.fitted``) set it on
+    the first unit alone: members in turn (a model and stepper each) then stepped at two Δt and
+    differed by 10 m. Now every unit steps at the fitted Δt (kgu35's set in place, leapfrog's
+    built anew), each member the bits of the single run given that Δt."""
+    kw = dict(ne=2, np=4, days=0.25, stepper=stepper, progress=False)
+    many = Simulation("tc2_steady_alpha_pi4", "cpu", members=2, layout="in_turn", **kw)
+    assert many.scene.dt == 2400.0 and len(many.core.units) == 2
+    many.advance(days=0.125)  # 4.5 steps of 2400 s: fitted to 2160 s
+    assert many.scene.dt == 2160.0 and [u.stepper.dt for u in many.core.units] == [2160.0, 2160.0]
+    one = Simulation("tc2_steady_alpha_pi4", "cpu", dt=2160.0, **kw)
+    one.advance(days=0.125)
+    for state in many.states():
+        np.testing.assert_array_equal(state, one.states()[0])

@@ -302,18 +302,23 @@ def scene_from_dict(d: dict) -> Scene:
     )
 
 
-def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") -> Scene:
-    """The scene run to ``days`` (model day, from t = 0) instead; dt must divide the
-    run from ``start_day`` and its output interval (``dt_source`` says where dt comes
-    from, for the message). Raises ``SceneError``."""
-    start = scene.start_day
+def run_end(days, start: float = 0.0) -> float:
+    """``days`` (model day, from t = 0) as the end of a run from ``start``: a finite number
+    > ``start``. Raises ``SceneError`` (naming the day a branch starts at)."""
     if not (isinstance(days, (int, float)) and math.isfinite(days) and days > start):
         raise SceneError(
             f"days must be > {start:g} (got {days})"
             + (f": the run branches at day {start:g} and days is the model day it ends at" if start else "")
         )
-    scene = dataclasses.replace(scene, days=float(days))
-    Clock(scene.dt, start, scene.days, dt_source, scene.control is not None).check(
+    return float(days)
+
+
+def with_days(scene: Scene, days: float, dt_source: str = "the restart file's") -> Scene:
+    """The scene run to ``days`` (model day, from t = 0) instead; dt must divide the
+    run from ``start_day`` and its output interval (``dt_source`` says where dt comes
+    from, for the message). Raises ``SceneError``."""
+    scene = dataclasses.replace(scene, days=run_end(days, scene.start_day))
+    Clock(scene.dt, scene.start_day, scene.days, dt_source, scene.control is not None).check(
         {"the output interval (output.every_days)": scene.output_every_days}
     )
     return scene

@@ -37,12 +37,14 @@ SPARSE_SEARCH = 10**4
 class Times(NamedTuple):
     """The times a scene's fixed Δt lands on (days): the run's last day ``days``, the output
     interval ``every``, the ``[[output.streams]]`` intervals that are numbers > 0 (``streams``,
-    checked later) and the run's restart interval (``restart``; None: none)."""
+    checked later), the run's restart interval (``restart``; None: none) and the day of its step
+    0 (``start``: a branch's)."""
 
     days: float
     every: float
     streams: tuple = ()
     restart: float | None = None
+    start: float = 0.0
 
 
 def scene_dt(
@@ -88,7 +90,9 @@ def scene_dt(
                 dt = shorter
     if not (is_number(dt) and math.isfinite(dt) and dt > 0):
         raise SceneError(f"dt must be > 0 (got {got(dt)})")
-    Clock(dt, 0.0, times.days, source, controlled).check({"the output interval (output.every_days)": times.every})
+    Clock(dt, times.start, times.days, source, controlled).check(
+        {"the output interval (output.every_days)": times.every}
+    )
     return dt, source, notes
 
 

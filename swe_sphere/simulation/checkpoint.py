@@ -7,14 +7,15 @@ other runs (``branch``: ``swe-sphere run --continue R --stepper S --dt DT``, ``s
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..config.resolve import refuse_precision
+from ..config.resolved import run_end
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
+from ..config.step_rule import Times, scene_dt
 from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
 from ..io import restart_file
@@ -46,7 +47,8 @@ class Checkpoint:
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
     """The scene of a new run from checkpoint ``ck``'s state with ``stepper`` and
-    ``dt`` (s; None: the checkpoint's), to model day ``days`` (from t = 0; None:
+    ``dt`` (s, taken by the scene's step rule, ``config.step_rule.scene_dt``; None: the
+    checkpoint's), to model day ``days`` (from t = 0; None:
     the checkpoint scene's): a fresh stepper (multistep ones start as at t = 0),
     step 0 at the checkpoint's day (``Scene.start_day``), output every output
     interval from there, and ``Scene.branch`` recording the source (its path and
@@ -60,17 +62,20 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
     if stepper not in STEPPERS:
         raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
     refuse_precision(s.precision, stepper)
-    if dt is not None and not (math.isfinite(dt) and dt > 0):
-        raise SceneError(f"dt must be > 0 (got {dt:g})")
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}
     record |= {"day": ck.day, "stepper": s.stepper, "dt": s.dt}
     # the notes on how the scene's dt was chosen are stale once dt is given
     notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
     opts = s.stepper_options if stepper == s.stepper else {}
-    scene = replace(
-        s, stepper=stepper, stepper_options=opts, dt=s.dt if dt is None else float(dt), branch=record, notes=notes
-    )
-    return with_days(scene, s.days if days is None else days, "the restart file's" if dt is None else "the dt given")
+    scene = replace(s, stepper=stepper, stepper_options=opts, branch=record, notes=notes)
+    days = s.days if days is None else days
+    if dt is None:  # the restart file's Δt, its scene's rule's
+        return with_days(scene, days)
+    # a Δt given: the scene's rule takes it as given (> 0, whole steps of the run from the branch day and
+    # of its output interval; the grid's spacing unasked: a given Δt is not scaled)
+    times = Times(run_end(days, scene.start_day), s.output_every_days, start=scene.start_day)
+    dt = scene_dt(None, dt, s.name, s.grid, None, times, controlled=s.control is not None)[0]
+    return replace(scene, dt=float(dt), days=times.days)
 
 
 def continued_scene(ck: Checkpoint, days: float | None) -> Scene:

@@ -9,9 +9,7 @@ import contextlib
 import warnings
 from pathlib import Path
 
-from ..config.scene import with_days
 from ..core.arguments import integer_argument
-from ..core.constants import DAY
 from ..core.errors import ArgumentError, SceneError
 from ..members.units import POLICIES
 from ..simulation.simulation import Simulation
@@ -63,13 +61,6 @@ class Ensemble(Simulation):
         if self.control is not None:
             raise ArgumentError("Ensemble.step takes steps of a fixed dt: under step control, advance(days) or run")
         self._advance_to(self.core.step + n)
-
-    def _advance_to(self, target: int) -> None:
-        """Steps to ``target`` by ``run``'s loop (the scene lengthened past its end)."""
-        s = self.scene
-        if target > s.nsteps:
-            self.scene = with_days(s, s.start_day + target * s.dt / DAY, "the scene's")
-        self.run(None, until_step=target)
 
     def advance(self, days: float) -> None:
         """``Simulation.advance``, returning nothing; ``ArgumentError`` for days not whole steps."""

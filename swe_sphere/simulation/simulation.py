@@ -671,7 +671,10 @@ class Simulation:
             if end > self.scene.days:
                 self.scene = with_days(self.scene, end, "the scene's")
             return self.run(None, until_day=end)
-        target = self.core.step + (self._steps_in(days, "days") if days else 0)
+        return self._advance_to(self.core.step + (self._steps_in(days, "days") if days else 0))
+
+    def _advance_to(self, target: int) -> RunResult:
+        """Steps to ``target`` by ``run``'s loop (the scene lengthened past its end)."""
         if target > self.scene.nsteps:
             self.scene = with_days(self.scene, self.scene.start_day + target * self.scene.dt / DAY, "the scene's")
         return self.run(None, until_step=target)

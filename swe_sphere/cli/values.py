@@ -140,7 +140,9 @@ def varied(items) -> dict:
 def degree_band(text: str, scene=None) -> tuple[int, int]:
     """``--perturbation-degrees 1,20`` → (1, 20); ValueError for anything but two integers
     1 <= L_MIN <= L_MAX, or an L_MAX past the degrees the grid of ``scene`` (a ``Scene``) resolves
-    (``grid_degree``: its noise would alias onto the degrees it holds)."""
+    (``members.initial.check_band``)."""
+    from ..members.initial import check_band
+
     parts = text.split(",")
     try:
         low, high = (int(p) for p in parts)
@@ -148,16 +150,6 @@ def degree_band(text: str, scene=None) -> tuple[int, int]:
         raise ValueError(f"--perturbation-degrees {text!r}: give L_MIN,L_MAX (two integers)") from None
     if not 1 <= low <= high:
         raise ValueError(f"--perturbation-degrees {text}: give L_MIN,L_MAX with 1 <= L_MIN <= L_MAX")
-    if scene is not None and high > grid_degree(scene):
-        raise ValueError(
-            f"--perturbation-degrees {text}: the {scene.grid_text} grid resolves degrees up to about "
-            f"{grid_degree(scene)} (2 ne (np - 1), its nodes along the equator over 2): give L_MAX <= {grid_degree(scene)}"
-        )
+    if scene is not None:
+        check_band((low, high), scene, "--perturbation-degrees")
     return low, high
-
-
-def grid_degree(scene) -> int:
-    """The highest spherical-harmonic degree the grid of ``scene`` resolves, about: 2 ne (np - 1), half
-    its 4 ne (np - 1) nodes along the equator (a mesh's ne: that of the cube of as many elements)."""
-    ne = scene.ne if scene.ne else math.sqrt(scene.nelem / 6)
-    return int(2 * ne * (scene.np - 1))

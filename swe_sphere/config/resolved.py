@@ -207,8 +207,15 @@ class Scene:
     def make_case(self):
         case = make_case(self.case, self.case_params, Planet.from_table(self.planet), SCENE_CASES)
         if hasattr(case, "grid_degree"):  # a reanalysis: its default truncation is what this grid resolves
-            case = dataclasses.replace(case, grid_degree=2 * self.grid.record.mean_ne * (self.np - 1))
+            case = dataclasses.replace(case, grid_degree=self.grid_degree)
         return case
+
+    @property
+    def grid_degree(self) -> float:
+        """The highest spherical-harmonic degree the grid resolves, about: 2 ne (np - 1), half its
+        4 ne (np - 1) nodes along the equator (a mesh's ne: that of the cube of as many elements,
+        the record's ``mean_ne``)."""
+        return 2 * self.grid.record.mean_ne * (self.np - 1)
 
     def make_mesh(self):
         """The grid's ``Mesh`` for ``CubedSphere(ne, np, mesh=...)``, None for the equiangular

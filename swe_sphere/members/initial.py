@@ -25,7 +25,8 @@ class Perturbation:
 
     - ``degrees`` None (white noise): ξ_k standard normal, one draw a node, the N members' drawn as
       ``numpy.random.default_rng(seed).standard_normal((N, nunique))``.
-    - ``degrees`` (l_min, l_max), integers 1 ≤ l_min ≤ l_max ≤ ``MAX_DEGREE``: ξ_k a random field of
+    - ``degrees`` (l_min, l_max), integers 1 ≤ l_min ≤ l_max ≤ ``MAX_DEGREE``, l_max within what the
+      run's grid resolves (``check_band``, as the run's members start): ξ_k a random field of
       the spherical harmonics of those degrees alone, each degree holding the same variance (its
       2l + 1 orthonormal coefficients' real and imaginary parts drawn N(0, 1/(2l + 1)), m = 0's
       real), summed at the nodes (``cases.reference.synthesis``) and scaled to an
@@ -77,6 +78,18 @@ class Perturbation:
         xi = np.stack([synthesis(a, hi, lat, lon) for a in alm])
         rms = np.sqrt(np.sum(grid.area * xi**2, axis=1) / np.sum(grid.area))
         return xi / rms[:, None]
+
+
+def check_band(degrees: tuple | None, scene, name: str) -> None:
+    """``ArgumentError`` naming ``name`` (the key the band was given by) for a ``Perturbation``'s
+    ``degrees`` (l_min, l_max) whose l_max passes what the grid of ``scene`` (a ``Scene``)
+    resolves (``Scene.grid_degree``): its noise would alias onto the degrees the grid holds."""
+    top = int(scene.grid_degree)
+    if degrees is not None and degrees[1] > top:
+        raise ArgumentError(
+            f"{name} {degrees[0]},{degrees[1]}: the {scene.grid_text} grid resolves degrees up to about {top} "
+            f"(2 ne (np - 1), its nodes along the equator over 2): give l_max <= {top}"
+        )
 
 
 @dataclasses.dataclass(frozen=True)

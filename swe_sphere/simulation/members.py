@@ -19,7 +19,7 @@ from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import area_rms, member_statistics
 from ..members.grid import MemberGrid, member_part
-from ..members.initial import Perturbation, Variants, checked_states, described, initial_states
+from ..members.initial import Perturbation, Variants, check_band, checked_states, described, initial_states
 from ..members.units import (
     POLICIES,
     held_state,
@@ -60,6 +60,9 @@ class Members:
         members = integer_argument("members", asked["members"] if members is None else members, 1)
         if initial is None and asked is not None and asked["perturbation"] > 0:
             initial = Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
+            check_band(initial.degrees, scene, "ensemble.degrees")
+        elif isinstance(initial, Perturbation):
+            check_band(initial.degrees, scene, "initial: perturbation degrees")
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:

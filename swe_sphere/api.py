@@ -95,6 +95,11 @@ def run(
         SIGINT or SIGTERM in the main thread.
     ResourceError
         Too little memory for the grid.
+
+    Warns
+    -----
+    MembersAlike
+        An [ensemble]'s members that start alike (``Simulation``'s).
     """
     for name, value in (("overwrite", overwrite), ("progress", progress), ("verbose", verbose)):
         flag_argument(name, value, SceneError)

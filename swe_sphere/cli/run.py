@@ -7,6 +7,7 @@ import contextlib
 import math
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from ..core.errors import BlowUp, CheckpointError, OutputError, SceneError
@@ -316,6 +317,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     """``run --members N``'s header (before the run): the scene, grid, terms, stepper (its
     precision and control), the members and how they step, a continuation's step, the Courant numbers, notes,
     the output and restart files."""
+    from ..members.initial import alike_line
     from ..members.units import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
@@ -347,11 +349,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
         print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, sim.time, "nodes and members"))
     print_notes(scene.notes, ens.root)
     if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
-        print(
-            f"swe-sphere: warning: the {ens.members} members start alike (the case's state: no --perturbation M > 0, "
-            "--vary or --initial), so they stay alike and their spread is 0 m",
-            file=sys.stderr,
-        )
+        print(f"swe-sphere: warning: {alike_line(ens.members)}", file=sys.stderr)
     print(f"output      {output} (every {scene.output_every_days:g} days)")
     print_streams(scene, output)
     if args.restart_every is not None:  # as a run's header says it
@@ -395,17 +393,20 @@ def _run(args, scene, members, output, device, comm) -> int:
     from ..core import mpi
     from ..core.workers import cpus, limit_threads
     from ..io.output_files import check_target
+    from ..members.initial import MembersAlike
     from ..simulation.schedules import check_restart_interval
     from ..simulation.simulation import Simulation
     from ..simulation.writers import restart_path
 
     if comm is not None:
         limit_threads(max(1, cpus() // mpi.node_local_size(comm)))
-    if args.continue_from is None:
-        kw = {"progress": not args.no_progress, "comm": comm, "graphs": args.graphs}
-        sim = Simulation(scene, device, **kw, **_member_options(args, members, scene))
-    else:
-        sim = _continued(args, device, comm, members)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MembersAlike)  # the header says it, as a command's warning
+        if args.continue_from is None:
+            kw = {"progress": not args.no_progress, "comm": comm, "graphs": args.graphs}
+            sim = Simulation(scene, device, **kw, **_member_options(args, members, scene))
+        else:
+            sim = _continued(args, device, comm, members)
     if not sim.root:  # rank 0 reports; the others' errors still reach stderr
         sys.stdout = open(os.devnull, "w")
     if args.continue_from is not None:  # a continuation keeps its checkpoint's restart interval

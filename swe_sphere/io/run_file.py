@@ -178,13 +178,17 @@ def area_rms(grid: CubedSphere, f: np.ndarray) -> float:
 def member_statistics(fields: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ensemble mean and spread over the first axis of ``fields`` (members, ...): the mean
     and the sample standard deviation (N − 1 in the denominator; 0 for one member), over the
-    members with no NaN (a member dropped at a blow-up; NaN where none is left)."""
+    members with no NaN (a member dropped at a blow-up; NaN where none is left); where every
+    member holds the same value, that value and 0."""
     if np.isnan(fields).any():
         fields = fields[~np.isnan(fields.reshape(len(fields), -1)).any(axis=1)]
         if not len(fields):
             return (np.full(fields.shape[1:], np.nan),) * 2
-    n = fields.shape[0]
-    return fields.mean(axis=0), fields.std(axis=0, ddof=1) if n > 1 else np.zeros(fields.shape[1:])
+    mean, spread = fields.mean(axis=0), fields.std(axis=0, ddof=1) if len(fields) > 1 else 0.0
+    # where every member holds one value, it is their mean and their spread 0 (numpy's sums round
+    # N equal values apart: 1000 members alike had an h spread of 3.3e-11 m)
+    same = (fields == fields[0]).all(axis=0)
+    return np.where(same, fields[0], mean), np.where(same, 0.0, spread)
 
 
 SERIES_ATTRS["ref_l2_vorticity_eq83"] = dict(

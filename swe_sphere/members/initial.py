@@ -226,6 +226,27 @@ def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -
     return checked_states(states, case, "initial")
 
 
+class MembersAlike(UserWarning):
+    """Members that start alike and step alike (``stay_alike``): they stay alike, their spread 0 m."""
+
+
+def stay_alike(states: np.ndarray, initial) -> bool:
+    """Whether the members started from ``states`` (N, 3, n) by ``initial`` (``initial_states``'s)
+    stay alike: N > 1, every member's state the first's to the bit and its scene the first's
+    (``Variants`` each of whose keys takes one value), so that each step keeps their bits the same."""
+    if len(states) < 2 or not (states == states[0]).all():
+        return False
+    return not isinstance(initial, Variants) or all(all(v == vs[0] for v in vs) for vs in initial.values.values())
+
+
+def alike_line(members: int) -> str:
+    """The warning of ``members`` that stay alike (``stay_alike``), as Python and the command line give it."""
+    return (
+        f"the {members} members start alike (the same state to the bit, the same scene), so they stay alike "
+        "and their spread is 0 m"
+    )
+
+
 def checked_states(states: np.ndarray, case, name: str, members=None) -> np.ndarray:
     """``states`` (M, 3, n) of ``members`` (their indices; None: 0 … M − 1), refused
     (``ArgumentError`` naming ``name`` and the member) where not finite or where a member's h ≤ 0

@@ -7,6 +7,7 @@ run's diagnostics on (N, n) fields, as ``state_diagnostics.StateDiagnostics`` is
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,17 @@ from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import area_rms, member_statistics
 from ..members.grid import MemberGrid, member_part
-from ..members.initial import Perturbation, Variants, check_band, checked_states, described, initial_states
+from ..members.initial import (
+    MembersAlike,
+    Perturbation,
+    Variants,
+    alike_line,
+    check_band,
+    checked_states,
+    described,
+    initial_states,
+    stay_alike,
+)
 from ..members.units import (
     POLICIES,
     held_state,
@@ -81,7 +92,8 @@ class Members:
         self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
         starts = initial_states(initial, grid, case, members, self.cases)
         self.initial_states = described(initial)
-        self.alike = members > 1 and (initial is None or isinstance(initial, Perturbation) and initial.amplitude == 0)
+        # measured on the starts made, whatever made them (a perturbation lost in h's rounding, a file, --vary)
+        self.alike = stay_alike(starts, initial)
         if blow_up not in POLICIES:
             raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
         self.options = {"device": backend.device, **options}
@@ -107,6 +119,8 @@ class Members:
         self.fcor = self.side(lambda u: u.model.operators.fcor.numpy())
         self.g = [u.model.g for u in self.units for _ in range(u.members)]
         self.scorer = None
+        if self.alike and self.root:  # once built (a refusal says its own line alone)
+            warnings.warn(alike_line(members), MembersAlike, stacklevel=4)  # at the caller of Simulation
 
     def member(self, a: np.ndarray, k: int) -> np.ndarray:
         """The k-th held member's columns (..., n) of ``a`` (..., held·n), its members side by side."""

@@ -159,6 +159,12 @@ class Simulation:
     ResourceError
         Too little memory for the grid.
 
+    Warns
+    -----
+    MembersAlike
+        Members that start alike, to the bit, on one scene (``members.initial.stay_alike``): they
+        stay alike, their spread 0 m.
+
     Notes
     -----
     With ``graphs`` "on", and "auto" on CUDA, ``run`` replays each step of a

@@ -184,6 +184,7 @@ class Simulation:
     _of_members = False  # a run of members even where neither ``members`` nor the scene names them (refused)
     restart_every: float | None = None  # days: a continuation's, its checkpoint's (``from_checkpoint``)
     ensemble: Members | None = None  # the members' part (``members.Members``); None: one run
+    check_every = CHECK_EVERY_STEPS
 
     def __init__(
         self,
@@ -227,12 +228,7 @@ class Simulation:
         t0 = time.perf_counter()
         self._compile = [0.0]
         self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
-        self.backend, self.device, self.progress, self.check_every = (
-            backend,
-            backend.device,
-            progress,
-            CHECK_EVERY_STEPS,
-        )
+        self.backend, self.device, self.progress = backend, backend.device, progress
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
@@ -354,7 +350,7 @@ class Simulation:
             states, layout, policy = member_starts(ck)
             both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
             sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
-            sim.restore_members(ck)
+            restore_run(sim.run_state, ck, lambda: sim.ensemble.restore(ck))
         else:
             sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
             if whole:  # a continuation: the stepper's history, the counters and the step control as they were
@@ -604,14 +600,6 @@ class Simulation:
             self.fit_dt(days, what)
         return steps_of(self.scene, days, f"the interval {what}")
 
-    def _fixed_dt(self, what: str) -> None:
-        """Refuse (``ArgumentError``) ``what`` (a call by whole steps) under step control."""
-        if self.control is not None:
-            raise ArgumentError(
-                f"{what} steps a fixed dt: under step control ([time] control) the controller chooses the "
-                "steps, and a run goes to its end (Simulation.run)"
-            )
-
     def fit_dt(self, every: float, what: str = "every") -> tuple:
         """Shorten Δt before the first step (``fitted_dt``, with its ``SceneError``; then ``use_dt``:
         set on the stepper, or one built anew, the activities' steps and the start's diagnostics
@@ -715,7 +703,11 @@ class Simulation:
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """
-        self._fixed_dt("Simulation.steps")
+        if self.control is not None:
+            raise ArgumentError(
+                "Simulation.steps steps a fixed dt: under step control ([time] control) the controller chooses the "
+                "steps, and a run goes to its end (Simulation.run)"
+            )
         per = self._steps_in(every, "every")
         while (target := (self.core.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
@@ -773,10 +765,6 @@ class Simulation:
         is already ``ck.x``)."""
         restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
         self.initial = ck.initial
-
-    def restore_members(self, ck: ckpt.Checkpoint) -> None:
-        """An ensemble's ``restore_history``: every member's state and stepper history (``Members.restore``)."""
-        restore_run(self.run_state, ck, lambda: self.ensemble.restore(ck))
 
     def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid

@@ -147,6 +147,16 @@ def print_notes(notes, root: bool) -> None:
             print(f"note        {note}")
 
 
+def print_output(scene, output, only: str = "") -> None:
+    """A header's line of the run file ``output`` (a run's and an ensemble's): its interval, or
+    where the run is shorter than that, the two times it holds (the run's start and its end)."""
+    every = scene.output_every_days
+    when = f"every {every:g} days"
+    if every > scene.run_days:  # ``--days 0.5`` of a scene writing every day: no time but the start and the end
+        when = f"at the start and at day {scene.days:g}: the run is shorter than its interval, {when}"
+    print(f"output      {output} ({when}{only})")
+
+
 def print_streams(scene, output) -> None:
     """A header's line for each ``[[output.streams]]`` of ``scene`` beside the run file ``output``
     (a run's and an ensemble's)."""
@@ -168,7 +178,7 @@ def _courant_notes_outputs(args, sim, output, c) -> None:
     extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
     print_notes((*scene.notes, *extra), sim.root)
     only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
-    print(f"output      {output} (every {scene.output_every_days:g} days{only})")
+    print_output(scene, output, only)
     print_streams(scene, output)
     if scene.log_every_steps:
         print(

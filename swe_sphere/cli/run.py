@@ -321,7 +321,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     from ..members.units import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
-    from .report import control_line, courant_line, precision_line, print_notes, print_streams, terms_line
+    from .report import control_line, courant_line, precision_line, print_notes, print_output, print_streams, terms_line
 
     scene, ens = sim.scene, sim.ensemble
     gravity_waves = "pressure_gradient" in scene.terms
@@ -350,7 +350,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     print_notes(scene.notes, ens.root)
     if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
         print(f"swe-sphere: warning: {alike_line(ens.members)}", file=sys.stderr)
-    print(f"output      {output} (every {scene.output_every_days:g} days)")
+    print_output(scene, output)
     print_streams(scene, output)
     if args.restart_every is not None:  # as a run's header says it
         print(f"restart     {restart_path(output)} (every {args.restart_every:g} days and at the end)")

@@ -87,6 +87,11 @@ def test_a_rerun_reuses_a_member_s_runs_and_another_seed_makes_them_again(swept,
         (["--members", "1", "--perturbation", "1"], "--members must be an integer >= 2"),
         (["--seed", "1"], "--seed only with --members N --perturbation M"),
         (["--members", "2", "--perturbation", "0"], "--perturbation must be a finite number > 0"),
+        # a band past the ne2 grid's degrees (run had this check; the sweep made noise that aliased)
+        (
+            ["--members", "2", "--perturbation", "1", "--perturbation-degrees", "1,500"],
+            "--perturbation-degrees 1,500: the ne=2 np=4 grid resolves degrees up to about 12",
+        ),
     ],
 )
 def test_bad_member_options_are_one_line_and_exit_2(capsys, tmp_path, more, says):

@@ -22,7 +22,7 @@ from ...core.arguments import got, integer_argument, number_argument
 from ...core.errors import ArgumentError
 from ...grid.cubed_sphere import CubedSphere
 from ...io.output_files import atomic_path
-from ...members.initial import MemberFile, Perturbation, Variants, described, initial_states
+from ...members.initial import MemberFile, Perturbation, Variants, check_band, described, initial_states
 from ..figures import members_plot
 from .report import format_summary, write_outputs
 from .verdicts import table
@@ -65,8 +65,12 @@ class Members:
 
     def starts(self, scenes: dict) -> np.ndarray:
         """(N, 3, n) the members' starts on the grid of ``scenes`` (stepper name → ``Scene``),
-        checked (``members.initial.initial_states``: ``ArgumentError`` naming ``initial``)."""
+        checked (``members.initial.initial_states``: ``ArgumentError`` naming ``initial``; a
+        perturbation's band past the grid's degrees naming ``--perturbation-degrees``,
+        ``members.initial.check_band``)."""
         scene = next(iter(scenes.values()))
+        if isinstance(self.initial, Perturbation):  # noise past the grid's degrees would alias onto those it holds
+            check_band(self.initial.degrees, scene, "--perturbation-degrees")
         case = scene.make_case()
         grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         variants = isinstance(self.initial, Variants)  # their cases start them

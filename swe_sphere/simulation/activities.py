@@ -19,24 +19,18 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
 
 from .schedules import AtDays, EverySteps
+from .writers import RunFiles
 
 
-class Schedule(Protocol):
-    def due(self, step: int) -> bool: ...
-
-    def next_after(self, step: int) -> int | None: ...
-
-
-def is_due(schedule: Schedule, run) -> bool:
+def is_due(schedule, run) -> bool:
     """Whether ``schedule`` is due at ``run``'s step (``run_state.RunState``; an ``AtDays`` at the
     day the step landed on, ``RunState.event_day``)."""
     return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)
 
 
-def add_callback(activities: dict, fn: Callable, schedule: Schedule, name: str | None = None) -> None:
+def add_callback(activities: dict, fn: Callable, schedule: EverySteps, name: str | None = None) -> None:
     """``fn(owner)`` at the steps of ``schedule`` (a ``Callback``) in ``activities`` under ``name``
     (None: the first free "callback N"): ``Simulation.add_callback``'s."""
     if name is None:
@@ -52,20 +46,12 @@ def call_due(activities: dict, run, owner) -> None:
             activity(owner)
 
 
-class Activity(Protocol):
-    """Something a run does at the steps of its ``schedule``: ``activity(sim)``."""
-
-    schedule: Schedule
-
-    def __call__(self, sim) -> None: ...
-
-
 @dataclass
 class Callback:
     """``fn(sim)`` at the steps of ``schedule`` (``Simulation.add_callback``)."""
 
     fn: Callable
-    schedule: Schedule
+    schedule: EverySteps
 
     def __call__(self, sim) -> None:
         self.fn(sim)
@@ -79,7 +65,7 @@ class Log:
 
     log: Callable
     schedule: EverySteps
-    files: Activity
+    files: RunFiles
 
     def __call__(self, owner) -> None:
         files = self.files

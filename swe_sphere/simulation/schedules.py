@@ -74,13 +74,9 @@ def next_multiple(step: int, every: int) -> int:
 
 @dataclass(frozen=True)
 class AtSteps:
-    """Due at the steps in ``steps`` (sorted; a run's output times, its restart steps): ``AtSteps.of(a_set)``."""
+    """Due at the steps in ``steps`` (sorted; a run's output times, its restart steps): ``at_marks(a_set, False)``."""
 
     steps: tuple
-
-    @classmethod
-    def of(cls, steps) -> AtSteps:
-        return cls(tuple(sorted(steps)))
 
     def due(self, step: int) -> bool:
         i = bisect.bisect_left(self.steps, step)
@@ -115,13 +111,15 @@ class AtDays:
 
     days: tuple
 
-    @classmethod
-    def of(cls, days) -> AtDays:
-        return cls(tuple(sorted(days)))
-
     def due(self, step: int, day: float | None) -> bool:
         return day is not None and day in self.days
 
     def next_after(self, step: int) -> None:
         """None: steps do not say when a day falls (the loop lands on ``days`` itself)."""
         return None
+
+
+def at_marks(marks, controlled: bool) -> AtSteps | AtDays:
+    """The schedule due at ``marks`` (a set): steps (``AtSteps``), or under step control
+    (``controlled``) days (``AtDays``)."""
+    return (AtDays if controlled else AtSteps)(tuple(sorted(marks)))

@@ -10,7 +10,7 @@ from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import AtDays, AtSteps, interval_days, output_days, output_steps, restart_steps
+from .schedules import at_marks, interval_days, output_days, output_steps, restart_steps
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -84,20 +84,6 @@ def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, cour
     }
 
 
-def run_streams(output, scene, controlled: bool) -> list:
-    """The run files of a run of ``scene`` to ``output`` (None: none), each (path, fields, marks):
-    the run file itself with the scene's ``output.fields``, then each ``[[output.streams]]``
-    (``stream_path``) with its own, each at its own output steps (``schedules.output_steps``;
-    under step control, ``controlled``, its days, ``output_days``)."""
-    if output is None:
-        return []
-    marks = output_days if controlled else output_steps
-    own = [
-        (stream_path(output, st["name"]), st["fields"], marks(scene, st["every_days"])) for st in scene.output_streams
-    ]
-    return [(Path(output), scene.output_fields or OUTPUT_FIELDS, marks(scene)), *own]
-
-
 class RunFiles:
     """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
     ``hs``) to ``output`` (``run_streams``: itself with the scene's ``output.fields``, then each
@@ -118,12 +104,18 @@ class RunFiles:
             solvers = [f"{k}_iterations" for k in run.stepper.solvers]
             control = CONTROL_SERIES if controlled else ()
             series = ["steps", "rhs_evals", *solvers, "wall_time", *run.initial, *control]
-        self.scene, self.grid, self.hs, self.series = run.scene, grid, hs, list(series)
-        self.streams = run_streams(output, run.scene, controlled)
-        self.paths = [path for path, _, _ in self.streams]
+        s = self.scene = run.scene
+        self.grid, self.hs, self.series = grid, hs, list(series)
+        # the run files (None: none), each (path, fields, marks): the run file itself with the scene's
+        # ``output.fields``, then each ``[[output.streams]]`` with its own, each at its own output steps
+        # (``schedules.output_steps``; under step control its days, ``output_days``)
         marks = output_days if controlled else output_steps
-        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(run.scene)
-        self.schedule = AtDays.of(self.steps) if controlled else AtSteps.of(self.steps)
+        self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, marks(s))]
+        for st in s.output_streams if output is not None else ():
+            self.streams.append((stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"])))
+        self.paths = [path for path, _, _ in self.streams]
+        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
+        self.schedule = at_marks(self.steps, controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
@@ -202,13 +194,9 @@ class RunFiles:
     def end(self, step: int, x=None, **attrs) -> None:
         """Close a run that stops early at ``step`` (state x, default the current one):
         the step recorded where it is not yet, and the global ``attrs`` set (why it stopped)."""
-        if self.unwritten(step):
+        if not _holds(self.run, self.steps, step) or any(at != step for at in self.last):  # some file lacks it
             self.record(step, x, final=True)
         self.set_attrs(**attrs)
-
-    def unwritten(self, step: int) -> bool:
-        """Whether some run file (or, without one, the history) lacks ``step``."""
-        return not _holds(self.run, self.steps, step) or any(at != step for at in self.last)
 
 
 class Checkpointer:
@@ -232,7 +220,7 @@ class Checkpointer:
         if every_days is not None:
             run.scene.clock.check_times("the restart interval", every_days)  # before the times are listed
             self.steps = (restart_steps if run.control is None else interval_days)(run.scene, every_days)
-        self.schedule = AtSteps.of(self.steps) if run.control is None else AtDays.of(self.steps)
+        self.schedule = at_marks(self.steps, run.control is not None)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 

@@ -8,6 +8,7 @@ arguments checked (``check_run_arguments``) and the seconds spent compiling Warp
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
 import time
 
@@ -15,11 +16,11 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..core.arguments import flag_argument, number_argument, path_argument
-from ..core.errors import BlowUp, OutputError, SceneError
+from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
+from ..core.interrupts import ABANDON_AFTER
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
 from .adaptive import Tries, steered
-from .summary import interrupted
 from .writers import Checkpointer, RunFiles, interrupted_attrs
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
@@ -143,15 +144,36 @@ def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **ho
 
 
 def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
-    """``result`` of ``run`` (a ``run_state.RunState``), or ``BlowUp`` or ``Interrupted``
-    (``summary.interrupted``) raised with it."""
+    """``result`` of ``run`` (a ``run_state.RunState``), or ``BlowUp`` or ``Interrupted`` raised with
+    it. The ``Interrupted`` of a run (a ``Simulation``'s) the signal ``stop.signum`` stopped at its
+    step says what was kept (``output``, the restart file its ``writers.Checkpointer`` ``ckp`` wrote,
+    or an existing one it left alone) and, for ``stop.abandoned`` = (b, m), the step abandoned; with
+    ``signum``, ``result`` (the run's ``RunResult``, or None) and ``checkpoint`` (the restart file
+    written, or None) on it."""
     if stop.blowup is not None:
         err = BlowUp(stop.blowup)
         err.result = result
         raise err
-    if stop.signum is not None:
-        raise interrupted(stop.signum, run.step, run.time, run.scene, output, ckp, stop.abandoned, result)
-    return result
+    if stop.signum is None:
+        return result
+    day, scene = run.time, run.scene
+    if day == scene.days:  # the run had ended (an interruption inside it stops before its last step)
+        kept = [f"the output {output} is complete"] if output is not None else []
+        when = f"after the last step (model time {day:.4f} days)"
+    else:
+        kept = [f"output so far in {output}"] if output is not None else []
+        if ckp.kept is not None:
+            kept.append(f"no restart file: {ckp.kept} exists (--overwrite, or overwrite=True in Python, replaces it)")
+        how = ""
+        if stop.abandoned:
+            b, m = stop.abandoned  # steps b+1..m were taken in a block not yet checked: dropped with m + 1
+            before = f" with steps {b + 1}-{m} before it (not yet checked)" if m > b else ""
+            how = f"; step {m + 1} abandoned after {ABANDON_AFTER:g} s{before} (no restart file from it)"
+        when = f"at step {run.step} (model time {day:.4f} days){how}"
+    kept += [f"restart file {ckp.written}"] if ckp.written is not None else []
+    err = Interrupted("; ".join([f"interrupted by {signal.Signals(stop.signum).name} {when}", *kept]))
+    err.signum, err.result, err.checkpoint = stop.signum, result, ckp.written
+    raise err
 
 
 def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:

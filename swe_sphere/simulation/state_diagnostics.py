@@ -56,10 +56,8 @@ class StateDiagnostics:
         rows = [x.numpy(), self.model.operators.vorticity(x)[None]]
         if divergence:
             rows.append(self.model.operators.wind_divergence(x)[None])
-        a = self.topology.gather(np.concatenate(rows))
-        if a is None:
-            return WholeFields(None, None, None, None)
-        return WholeFields(a[0], a[1], a[2], a[3], a[4] if divergence else None)
+        a = self.topology.gather(np.concatenate(rows))  # rows u, v, h, vorticity (, divergence)
+        return WholeFields(*([None] * 4 if a is None else a))
 
     def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
         """Invariants (and their relative change), errors against the truth
@@ -67,23 +65,20 @@ class StateDiagnostics:
         every rank). ``whole``: x's ``gather_fields`` when the caller has them (on
         every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
-        u, v, h = whole.u, whole.v, whole.h
-        errors = self.scorer.errors(t, (self.run.x if x is None else x).numpy(), u, v, h)
-        d = None
-        if self.root:
-            d = self._invariants(whole)
-            d.update(errors)
-            d.update(self._courant_numbers(u, v, h))
-        return self.topology.bcast(d)
+        errors = self.scorer.errors(t, (self.run.x if x is None else x).numpy(), whole.u, whole.v, whole.h)
+        return self.topology.bcast(self._figures(whole, errors) if self.root else None)
 
-    def _invariants(self, whole: WholeFields) -> dict:
-        """The invariants of ``whole`` and their change relative to ``initial`` (rank 0)."""
+    def _figures(self, whole: WholeFields, errors=()) -> dict:
+        """The invariants of ``whole`` and their change relative to ``initial``, ``errors`` and the
+        Courant numbers (rank 0)."""
         d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.model.g)
         if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
         start = self.run.initial or d  # diagnosing the initial state itself
         for k in list(d):
             d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
+        d.update(errors)
+        d.update(self._courant_numbers(whole.u, whole.v, whole.h))
         return d
 
     def log_line(self, d: dict | None = None) -> str | None:
@@ -94,10 +89,8 @@ class StateDiagnostics:
         it; else the fields are gathered here (the one device synchronisation).
         Call on every rank; None on the ranks > 0."""
         if d is None:
-            whole = self.gather_fields()
-            if self.root:
-                d = self._invariants(whole)
-                d.update(self._courant_numbers(whole.u, whole.v, whole.h))
+            whole = self.gather_fields()  # on every rank
+            d = self._figures(whole) if self.root else None
         if not self.root:
             return None
         names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}

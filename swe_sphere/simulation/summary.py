@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import math
-import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core.constants import DAY
-from ..core.errors import Interrupted
-from ..core.interrupts import ABANDON_AFTER
 
 # A run's wall time is estimated from the steps after its first (which compiles kernels):
 # this many of them, or as many as take this many seconds, whichever comes first.
@@ -98,28 +95,3 @@ class Ledger:
             loop_time=c["wall_time"] - self.wall0,
             **rest,
         )
-
-
-def interrupted(signum: int, step: int, day: float, scene, output, ckp, abandoned, result) -> Interrupted:
-    """The ``Interrupted`` a run (a ``Simulation``'s) raises when the signal
-    ``signum`` stopped it at ``step`` (model ``day``), its line saying what was kept (``output``, the
-    restart file its ``writers.Checkpointer`` ``ckp`` wrote, or an existing one it left alone) and,
-    for ``abandoned`` = (b, m), the step abandoned; with ``signum``, ``result`` (the run's
-    ``RunResult``, or None) and ``checkpoint`` (the restart file written, or None) on it."""
-    if day == scene.days:  # the run had ended (an interruption inside it stops before its last step)
-        kept = [f"the output {output} is complete"] if output is not None else []
-        when = f"after the last step (model time {day:.4f} days)"
-    else:
-        kept = [f"output so far in {output}"] if output is not None else []
-        if ckp.kept is not None:
-            kept.append(f"no restart file: {ckp.kept} exists (--overwrite, or overwrite=True in Python, replaces it)")
-        how = ""
-        if abandoned:
-            b, m = abandoned  # steps b+1..m were taken in a block not yet checked: dropped with m + 1
-            before = f" with steps {b + 1}-{m} before it (not yet checked)" if m > b else ""
-            how = f"; step {m + 1} abandoned after {ABANDON_AFTER:g} s{before} (no restart file from it)"
-        when = f"at step {step} (model time {day:.4f} days){how}"
-    kept += [f"restart file {ckp.written}"] if ckp.written is not None else []
-    err = Interrupted("; ".join([f"interrupted by {signal.Signals(signum).name} {when}", *kept]))
-    err.signum, err.result, err.checkpoint = signum, result, ckp.written
-    return err

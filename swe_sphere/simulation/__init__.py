@@ -9,17 +9,3 @@ integrator's bad-state check), signals (``core.interrupts``), ``summary`` (count
 
 May import: every layer below (``core`` to ``config``, the ``integrator``, ``adjoint``, ``members``).
 """
-
-__all__ = [
-    "activities",
-    "build",
-    "checkpoint",
-    "members",
-    "guard",
-    "restart",
-    "schedules",
-    "simulation",
-    "state_diagnostics",
-    "summary",
-    "writers",
-]

@@ -53,12 +53,7 @@ def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
         "source": f"swe_sphere {package_version()}",
         "swe_sphere_version": package_version(),
         "scene": scene.as_dict(),
-        "case": scene.case,
-        "ne": scene.ne,
-        "np": scene.np,
-        "stepper": scene.stepper,
-        "dt": scene.dt,
-        "precision": scene.precision,
+        **{k: getattr(scene, k) for k in ("case", "ne", "np", "stepper", "dt", "precision")},
     }
 
 

@@ -1,10 +1,8 @@
 """A simulation's build: the checks before it, the partition of the grid over the ranks,
 the model and stepper of the scene and the start state (the case's, a function's, a digital
-filter's or one handed in): ``build``, which returns them (``Built``) to ``Simulation.__init__``."""
+filter's or one handed in): ``build``, which returns them to ``Simulation.__init__``."""
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 
@@ -14,8 +12,6 @@ from ..config.scene import Scene
 from ..core.backend import Backend
 from ..core.errors import ResourceError
 from ..core.runtime import run_bytes
-from ..grid.cubed_sphere import CubedSphere
-from ..grid.topology import Topology
 from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers.initialization import digital_filter
@@ -50,34 +46,18 @@ def check_memory(scene: Scene, comm, backend: Backend, members: int = 1) -> None
         raise err
 
 
-@dataclasses.dataclass
-class Built:
-    """What ``build`` makes, which ``Simulation.__init__`` takes as its attributes of the same names
-    (beside its scene and backend, and what follows from them): this rank's part of the grid
-    (``topology``) and the whole grid on
-    rank 0 (``grid``; None elsewhere), the case, model, stepper and scorer, the case's fcor and
-    hs gathered, the start state ``start`` (3, N) on this rank's nodes (u, v in m s⁻¹, h in m;
-    the integrator's ``Unit.of`` makes it the device state and prepares the stepper on it),
-    and ``dfi``, the digital filter's result where it ran."""
+def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) -> tuple:
+    """The scene's topology, grid, case, model, stepper, scorer and start state; the arguments as
+    ``Simulation``'s. Raises as ``Simulation``.
 
-    case: object
-    topology: Topology
-    root: bool  # the rank that diagnoses, writes files and shows progress
-    progress: bool
-    grid: CubedSphere | None
-    model: ShallowWater
-    fcor: np.ndarray | None
-    hs: np.ndarray | None
-    stepper: object
-    scorer: Scorer
-    dfi: object
-    start: np.ndarray
-
-
-def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) -> Built:
-    """The scene's topology, grid, case, model, stepper, scorer and start state (``Built``;
-    ``dfi``: the digital filter's result where it ran); the arguments as ``Simulation``'s.
-    Raises as ``Simulation``."""
+    Returns what ``Simulation.__init__`` takes as its attributes of the same names (beside its
+    scene and backend, and what follows from them), in this order: the case, this rank's part
+    of the grid (``topology``), ``root`` (the rank that diagnoses, writes files and shows
+    progress), ``progress``, the whole grid on rank 0 (``grid``; None elsewhere), the model, the
+    case's fcor and hs gathered (rank 0), the scorer, ``dfi`` (the digital filter's result where
+    it ran, else None), the stepper and the start state ``start`` (3, N) on this rank's nodes
+    (u, v in m s⁻¹, h in m; the integrator's ``Unit.of`` makes it the device state and prepares
+    the stepper on it)."""
     check_memory(scene, comm, backend)
     case = scene.make_case()
     topo = partition(scene, case, comm, backend)
@@ -105,5 +85,4 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
         start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
     if not root:  # a fallback's warning once, from rank 0
         model.launches.guard.warn = lambda line: None
-    # in the order of ``Built``'s fields
-    return Built(case, topo, root, progress and root, grid, model, whole_fcor, whole_hs, stepper, scorer, dfi, start)
+    return case, topo, root, progress and root, grid, model, whole_fcor, whole_hs, scorer, dfi, stepper, start

@@ -39,7 +39,7 @@ from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.units import member_step
 from . import checkpoint as ckpt
 from .activities import Log, add_callback
-from .build import ON_ROOT, Built, build
+from .build import ON_ROOT, build
 from .checkpoint import Checkpoint
 from .guard import RunObserver
 from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
@@ -246,12 +246,11 @@ class Simulation:
         """A single run's parts (``build``), on this rank's elements."""
         # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
         # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
-        b: Built = build(scene, backend, progress, comm, start, initial)
-        self.case, self.topology, self.root, self.progress = b.case, b.topology, b.root, b.progress
-        self.grid, self.model, self.fcor = b.grid, b.model, b.fcor
-        self.hs, self.scorer, self.dfi = b.hs, b.scorer, b.dfi
+        parts = build(scene, backend, progress, comm, start, initial)  # in the order of ``build``'s doc
+        self.case, self.topology, self.root, self.progress, self.grid, self.model = parts[:6]
+        self.fcor, self.hs, self.scorer, self.dfi, stepper, start = parts[6:]
         # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
-        self.core = Integrator([Unit.of(b.model, b.stepper, b.start[None], backend, graphs)])
+        self.core = Integrator([Unit.of(self.model, stepper, start[None], backend, graphs)])
         # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
         self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
         self.g, self.members = self.model.g, 1

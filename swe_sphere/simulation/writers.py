@@ -20,9 +20,8 @@ def stream_path(output: Path, name: str) -> Path:
 
 
 def restart_path(output: Path) -> Path:
-    """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc``."""
-    output = Path(output)
-    return output.with_name(output.stem + ".restart.nc")
+    """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc`` (a stream's name, always ``.nc``)."""
+    return stream_path(output, "restart").with_suffix(".nc")
 
 
 def interrupted_attrs(signum: int, step: int, day: float) -> dict:
@@ -36,10 +35,6 @@ def _holds(run, marks: set, step: int) -> bool:
     """Whether ``marks`` (steps; under step control days, ``output_days``) hold ``step``, the
     current one under step control (``run_state.RunState.event_day``)."""
     return step in marks if run.control is None else run.event_day in marks
-
-
-# what the run file records of the step control at each output time (``SERIES_ATTRS``)
-CONTROL_SERIES = ("dt", "rejected_steps", "error_estimate", "spatial_rate")
 
 
 def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
@@ -83,7 +78,7 @@ class RunFiles:
     """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
     ``hs``) to ``output`` (``run_streams``: itself with the scene's ``output.fields``, then each
     ``[[output.streams]]``, each at its own output times, under step control with the
-    control's ``CONTROL_SERIES``); without ``output`` none, the diagnostics still taken at the
+    control's series); without ``output`` none, the diagnostics still taken at the
     scene's output steps. Rank 0's ``RunWriter`` s (``open``), the step each wrote last (on every
     rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
     whether any holds the divergence; ``record`` diagnoses an output step (into ``history``, and
@@ -97,7 +92,8 @@ class RunFiles:
         controlled = run.control is not None
         if series is None:  # a run's
             solvers = [f"{k}_iterations" for k in run.stepper.solvers]
-            control = CONTROL_SERIES if controlled else ()
+            # what the run file records of the step control at each output time (``SERIES_ATTRS``)
+            control = ("dt", "rejected_steps", "error_estimate", "spatial_rate") if controlled else ()
             series = ["steps", "rhs_evals", *solvers, "wall_time", *run.initial, *control]
         s = self.scene = run.scene
         self.grid, self.hs, self.series = grid, hs, list(series)
@@ -171,17 +167,16 @@ class RunFiles:
         self.history.append(d)
         if self.on_output is not None:
             self.on_output(step, run.x if x is None else x)
-        # the files whose times hold it (``final``: every one) and that have not written it, marked as written
-        due = [
-            i for i, (_, _, at) in enumerate(self.streams) if (final or _holds(run, at, step)) and self.last[i] != step
-        ]
         series = {k: d[k] for k in (*self.series, *self.member_series)}
-        for i in due if write else ():  # rank 0 writes the fields DSS'd, element-local, s-1
-            self.last[i] = step
-            if self.writers[i] is not None:
-                self.writers[i].append(
-                    day, whole.u, whole.v, whole.h, series, vorticity=whole.vorticity, divergence=whole.divergence
-                )
+        # to the files whose times hold it (``final``: every one) and that have not written it, marked as
+        # written; rank 0 writes the fields DSS'd, element-local, s-1
+        for i, (_, _, at) in enumerate(self.streams if write else ()):
+            if (final or _holds(run, at, step)) and self.last[i] != step:
+                self.last[i] = step
+                if self.writers[i] is not None:
+                    self.writers[i].append(
+                        day, whole.u, whole.v, whole.h, series, vorticity=whole.vorticity, divergence=whole.divergence
+                    )
 
     def __call__(self, owner) -> None:
         self.record(self.run.step)

@@ -78,15 +78,6 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
     return replace(scene, dt=float(dt), days=times.days)
 
 
-def continued_scene(ck: Checkpoint, days: float | None) -> Scene:
-    """The scene that continues ``ck`` to model day ``days`` (from t = 0; None: its own).
-    ``CheckpointError`` where that run ends before the checkpoint's day."""
-    scene = ck.scene if days is None else with_days(ck.scene, days)
-    if scene.days < ck.day:
-        raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
-    return scene
-
-
 def branch_attrs(scene: Scene) -> dict:
     """The global attributes of a branched run's files (``Scene.branch``): ``branched_from``
     (the restart file's path), ``branched_from_sha256``, ``_step``, ``_day``, ``_stepper``,

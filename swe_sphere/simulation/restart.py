@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..config.scene import with_days
 from ..core.arguments import path_argument
 from ..core.errors import CheckpointError
 from ..io import restart_file
@@ -19,7 +20,8 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
     from: (the checkpoint read, the scene, the constructor's ``start`` and ``initial_diagnostics``,
     and whether it continues the file rather than branch from it: its stepper's history then
     restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
-    file ``checkpoint.read`` refuses, or one of the other kind (an ensemble's, a single run's)."""
+    file ``checkpoint.read`` refuses, one of the other kind (an ensemble's, a single run's), or a
+    continuation whose run to ``days`` ends before the checkpoint's day."""
     if isinstance(checkpoint, ckpt.Checkpoint):
         ck = checkpoint
     else:  # an ensemble's members' states on every rank (each steps its own)
@@ -35,8 +37,12 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
     if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
         return ck, ckpt.branch(ck, stepper=stepper, dt=dt, days=days), start, None, False
-    # the state handed out with its t = 0 diagnostics; no second digital filter
-    return ck, ckpt.continued_scene(ck, days), start, ck.initial, True
+    # the scene that continues it to ``days``, the state handed out with its t = 0 diagnostics; no second
+    # digital filter
+    scene = ck.scene if days is None else with_days(ck.scene, days)
+    if scene.days < ck.day:
+        raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
+    return ck, scene, start, ck.initial, True
 
 
 def restore_run(run, ck: ckpt.Checkpoint, restore) -> None:

@@ -11,12 +11,6 @@ from fractions import Fraction
 from ..config.scene import Scene
 
 
-def steps_of(scene: Scene, days: float, what: str) -> int:
-    """The whole number of the scene's steps in ``days`` (``Clock.steps``: ``SceneError``
-    naming ``what`` and where dt comes from unless dt divides it)."""
-    return scene.clock.steps(days, what)
-
-
 def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
     """Steps with an output: every output interval (default the scene's
     ``output.every_days``) from step 0 (t = 0, or a branch's day), and the last."""
@@ -45,7 +39,7 @@ def restart_steps(scene: Scene, every_days: float) -> set[int]:
     """Steps at which a run with ``--restart-every every_days`` writes its restart
     file (and the last step). Raises ``SceneError`` unless dt divides the interval (its count
     checked first by the callers, ``check_restart_interval`` and the checkpointer)."""
-    per = steps_of(scene, every_days, "the restart interval")
+    per = scene.clock.steps(every_days, "the restart interval")  # ``SceneError`` unless dt divides it
     return set(range(per, scene.nsteps + 1, per)) | {scene.nsteps}
 
 

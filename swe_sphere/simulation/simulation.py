@@ -46,7 +46,7 @@ from .loop import check_run_arguments, check_run_files, compile_timer, integrate
 from .members import Members, member_starts
 from .restart import continued, restore_run, write_restart
 from .run_state import RunState
-from .schedules import EverySteps, at_its_end, steps_of
+from .schedules import EverySteps, at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
 from .writers import Checkpointer, RunFiles, run_attrs, scene_attrs
@@ -597,7 +597,7 @@ class Simulation:
         fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
         if self._own_dt and self.core.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
             self.fit_dt(days, what)
-        return steps_of(self.scene, days, f"the interval {what}")
+        return self.scene.clock.steps(days, f"the interval {what}")
 
     def fit_dt(self, every: float, what: str = "every") -> tuple:
         """Shorten Δt before the first step (``fitted_dt``, with its ``SceneError``; then ``use_dt``:

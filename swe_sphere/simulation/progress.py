@@ -11,9 +11,7 @@ from collections.abc import Callable
 PROGRESS_SECONDS = 30.0  # the console script's interval off a terminal (``run --progress-every``)
 
 
-def clock() -> float:
-    """Seconds of wall time (monotonic); a test replaces it."""
-    return time.monotonic()
+clock = time.monotonic  # seconds of wall time; a test replaces it
 
 
 class ProgressLines:

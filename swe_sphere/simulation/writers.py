@@ -108,7 +108,7 @@ class RunFiles:
         self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
         self.schedule = at_marks(self.steps, controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
-        self.writers = [None] * len(self.streams)  # rank 0's RunWriters, one a stream
+        self.writers = []  # rank 0's RunWriters, one a stream (none on the other ranks)
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
         self.run, self.diagnostics = run, diagnostics
         self.member_series = ()  # an ensemble's, set once its first diagnostics name them
@@ -125,7 +125,7 @@ class RunFiles:
         try:
             for i, (path, fields, _) in enumerate(self.streams):
                 kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": s.output_cells}
-                self.writers[i] = RunWriter(path, self.grid, self.hs, attrs, self.series, **kw, **members)
+                self.writers.append(RunWriter(path, self.grid, self.hs, attrs, self.series, **kw, **members))
                 for line in self.writers[i].cells_notes(s.grid_text) if notify is not None and i == 0 else ():
                     notify(line)
         except BaseException:
@@ -135,8 +135,7 @@ class RunFiles:
     def _each(self, verb: str, **kw) -> None:
         """``RunWriter.<verb>(**kw)`` of every file rank 0 holds."""
         for w in self.writers:
-            if w is not None:
-                getattr(w, verb)(**kw)
+            getattr(w, verb)(**kw)
 
     def set_attrs(self, **attrs) -> None:
         self._each("set_attrs", **attrs)
@@ -173,7 +172,7 @@ class RunFiles:
         for i, (_, _, at) in enumerate(self.streams if write else ()):
             if (final or _holds(run, at, step)) and self.last[i] != step:
                 self.last[i] = step
-                if self.writers[i] is not None:
+                if self.writers:  # rank 0's
                     self.writers[i].append(
                         day, whole.u, whole.v, whole.h, series, vorticity=whole.vorticity, divergence=whole.divergence
                     )

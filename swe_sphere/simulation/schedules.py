@@ -11,10 +11,9 @@ from fractions import Fraction
 from ..config.scene import Scene
 
 
-def output_steps(scene: Scene, every_days: float | None = None) -> set[int]:
-    """Steps with an output: every output interval (default the scene's
-    ``output.every_days``) from step 0 (t = 0, or a branch's day), and the last."""
-    every_days = scene.output_every_days if every_days is None else every_days
+def output_steps(scene: Scene, every_days: float) -> set[int]:
+    """Steps with an output: every output interval (the scene's ``output.every_days``, or a
+    stream's) from step 0 (t = 0, or a branch's day), and the last."""
     clock = scene.clock
     steps = {min(clock.nsteps, clock.steps_in(k * every_days)) for k in range(clock.times_in(every_days) + 1)}
     return steps | {clock.nsteps}
@@ -29,9 +28,8 @@ def interval_days(scene: Scene, every_days: float) -> set[float]:
     return {float(start + k * every) for k in range(1, n + 1)} | {float(end)}
 
 
-def output_days(scene: Scene, every_days: float | None = None) -> set[float]:
+def output_days(scene: Scene, every_days: float) -> set[float]:
     """``output_steps`` under step control: the output days, the start's and the end's."""
-    every_days = scene.output_every_days if every_days is None else every_days
     return interval_days(scene, every_days) | {float(scene.start_day)}
 
 

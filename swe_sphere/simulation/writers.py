@@ -101,11 +101,12 @@ class RunFiles:
         # ``output.fields``, then each ``[[output.streams]]`` with its own, each at its own output steps
         # (``schedules.output_steps``; under step control its days, ``output_days``)
         marks = output_days if controlled else output_steps
-        self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, marks(s))]
+        main = marks(s, s.output_every_days)  # the run file's times (without one, the diagnostics')
+        self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, main)]
         for st in s.output_streams if output is not None else ():
             self.streams.append((stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"])))
         self.paths = [path for path, _, _ in self.streams]
-        self.steps = set().union(*(steps for _, _, steps in self.streams)) if self.streams else marks(s)
+        self.steps = main.union(*(steps for _, _, steps in self.streams))
         self.schedule = at_marks(self.steps, controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.writers = []  # rank 0's RunWriters, one a stream (none on the other ranks)

@@ -1,7 +1,7 @@
 """The simulation layer: a run of a scene.
 
 ``simulation.Simulation`` of one member or N (its loop, ``run``; its ``build``, ``members`` and
-``restart``; driven from Python), the
+restarts, ``checkpoint``; driven from Python), the
 step graphs (``core.graphs.GraphedSteps``), its activities (``activities``: one shape, a schedule
 and a call; ``writers``: run and restart files; ``schedules``), ``guard`` (what a run adds to the
 integrator's bad-state check), signals (``core.interrupts``), ``summary`` (counts and the result),

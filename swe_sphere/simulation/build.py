@@ -15,8 +15,7 @@ from ..core.runtime import run_bytes
 from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers.initialization import digital_filter
-
-ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state
+from .checkpoint import ON_ROOT
 
 
 def check_memory(scene: Scene, comm, backend: Backend, members: int = 1) -> None:

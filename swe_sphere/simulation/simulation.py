@@ -40,11 +40,10 @@ from ..members.units import member_step
 from . import checkpoint as ckpt
 from .activities import Log, add_callback
 from .build import ON_ROOT, build
-from .checkpoint import Checkpoint
+from .checkpoint import Checkpoint, continued, restore_run, write_restart
 from .guard import RunObserver
 from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
 from .members import Members, member_starts
-from .restart import continued, restore_run, write_restart
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
 from .state_diagnostics import StateDiagnostics

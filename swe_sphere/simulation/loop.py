@@ -21,7 +21,7 @@ from ..core.interrupts import ABANDON_AFTER
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
 from .adaptive import Tries, steered
-from .writers import Checkpointer, RunFiles, interrupted_attrs
+from .writers import Checkpointer, RunFiles
 
 RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
 
@@ -104,8 +104,8 @@ def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **ho
     (``start`` its gathered fields, ``how["diagnosed"]`` their diagnostics where taken), a
     continuation's not written again: the two files join without a repeat. A blow-up's line the
     files' attribute ``how["why"]`` (default "blowup"), the last good state recorded where the run
-    has one (``how["last_good"]()``); a signal's step recorded, its ``interrupted_attrs`` and its
-    restart file. The files closed with ``how["closing"]()``'s attributes; on an exception
+    has one (``how["last_good"]()``); a signal's step recorded, its attributes (``interrupted``, its
+    name, ``interrupted_at_step`` and ``interrupted_at_day``) and its restart file. The files closed with ``how["closing"]()``'s attributes; on an exception
     dropped, or closed with ``how["kept"](err)``'s (an ensemble's). Returns why the steps
     stopped, a signal after the last step's check taken as one (the output is whole)."""
     step, stop, lines, last = run.step, Stop(), how.get("lines"), how.get("last_good")
@@ -127,7 +127,9 @@ def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **ho
                 elif stop.blowup is not None:
                     files.set_attrs(**why)
                 elif stop.signum is not None:
-                    files.end(run.step, **interrupted_attrs(stop.signum, run.step, run.time))
+                    # the global attributes of a run file stopped by a signal: its name, the step and model day
+                    name = signal.Signals(stop.signum).name
+                    files.end(run.step, interrupted=name, interrupted_at_step=run.step, interrupted_at_day=run.time)
                     ckp.interrupted(run.step, abandoned=stop.abandoned is not None)
                 files.set_attrs(**how.get("closing", dict)())
             files.close()  # under this run's handlers: a signal now waits, and is answered below
@@ -185,7 +187,7 @@ def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: 
     if taken:
         raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
     if root:
-        check_distinct([ckp.path, *files.paths], inputs)  # the paths: the run file and its streams
+        check_distinct([ckp.path, *(path for path, _, _ in files.streams)], inputs)  # the run file and its streams
         if ckp.path is not None:
             check_target(ckp.path, overwrite)
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import signal
 from pathlib import Path
 
 from ..cases.scoring import truth
@@ -22,13 +21,6 @@ def stream_path(output: Path, name: str) -> Path:
 def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc`` (a stream's name, always ``.nc``)."""
     return stream_path(output, "restart").with_suffix(".nc")
-
-
-def interrupted_attrs(signum: int, step: int, day: float) -> dict:
-    """The global attributes of a run file (a run's or an ensemble's) stopped by the signal
-    ``signum`` at ``step``, model day ``day``: ``interrupted`` (its name), ``interrupted_at_step``,
-    ``interrupted_at_day``."""
-    return {"interrupted": signal.Signals(signum).name, "interrupted_at_step": step, "interrupted_at_day": day}
 
 
 def _holds(run, marks: set, step: int) -> bool:
@@ -105,7 +97,6 @@ class RunFiles:
         self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, main)]
         for st in s.output_streams if output is not None else ():
             self.streams.append((stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"])))
-        self.paths = [path for path, _, _ in self.streams]
         self.steps = main.union(*(steps for _, _, steps in self.streams))
         self.schedule = at_marks(self.steps, controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
@@ -214,17 +205,14 @@ class Checkpointer:
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
-    def __call__(self, owner) -> None:
-        self.save()
-
     def interrupted(self, step: int, abandoned: bool) -> None:
         """Save the restart file of a run stopped by a signal at ``step``, unless it has
         none, already saved this step, or the step was ``abandoned`` (the stepper's history
         is then half updated)."""
         if self.path is not None and not _holds(self.run, self.steps, step) and not abandoned:
-            self.save()
+            self()
 
-    def save(self) -> None:
+    def __call__(self, owner=None) -> None:
         """Write the restart file of the current step (call on every rank)."""
         self.written = self.write(
             self.path, overwrite=self.overwrite or self.written is not None, restart_every=self.every_days

@@ -23,8 +23,6 @@ from ..io.output_files import check_distinct, check_target
 from .adaptive import Tries, steered
 from .writers import Checkpointer, RunFiles
 
-RUN_ACTIVITIES = ("run_file", "checkpointer", "log")  # the names ``run`` gives its own activities
-
 
 @contextlib.contextmanager
 def compile_timer(acc: list):
@@ -180,10 +178,10 @@ def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
 
 def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
     """A run's files checked before any is opened: ValueError for a user's activity in
-    ``activities`` under a name the run gives its own (``RUN_ACTIVITIES``); on rank 0 (``root``)
+    ``activities`` under a name the run gives its own (``run_file``, ``checkpointer``, ``log``); on rank 0 (``root``)
     ``OutputError`` for a file of the run that is one of ``inputs`` (``check_distinct``: the
     scene file, a mesh, a start) or a restart file that exists and not ``overwrite``."""
-    taken = sorted(set(activities) & set(RUN_ACTIVITIES))
+    taken = sorted(set(activities) & {"run_file", "checkpointer", "log"})  # the names ``run`` gives its own
     if taken:
         raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
     if root:

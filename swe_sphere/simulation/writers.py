@@ -68,8 +68,8 @@ def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, cour
 
 class RunFiles:
     """The run files of a run (its ``run_state.RunState`` ``run``, its ``diagnostics``, ``grid`` and
-    ``hs``) to ``output`` (``run_streams``: itself with the scene's ``output.fields``, then each
-    ``[[output.streams]]``, each at its own output times, under step control with the
+    ``hs``) to ``output`` (``streams``: itself with the scene's ``output.fields``, then each
+    ``[[output.streams]]`` (``stream_path``), each at its own output times, under step control with the
     control's series); without ``output`` none, the diagnostics still taken at the
     scene's output steps. Rank 0's ``RunWriter`` s (``open``), the step each wrote last (on every
     rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
@@ -113,12 +113,11 @@ class RunFiles:
         told in one line when the run file's cells were built rather than read from the cache at
         some cost, or when their fit failed and the files were written without them
         (``RunWriter.cells_notes``; the run file's, not its streams')."""
-        s = self.scene
         try:
             for i, (path, fields, _) in enumerate(self.streams):
-                kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": s.output_cells}
+                kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": self.scene.output_cells}
                 self.writers.append(RunWriter(path, self.grid, self.hs, attrs, self.series, **kw, **members))
-                for line in self.writers[i].cells_notes(s.grid_text) if notify is not None and i == 0 else ():
+                for line in self.writers[i].cells_notes(self.scene.grid_text) if notify is not None and i == 0 else ():
                     notify(line)
         except BaseException:
             self.abort()

@@ -154,10 +154,9 @@ class StateDiagnostics:
     def _dt(self) -> float:
         """The run's dt (s): the scene's, or under step control the controller's current one (the
         step it goes on with, not one cut short to land on an output time)."""
-        control = self.run.control
-        return self.run.scene.dt if control is None else control.dt
+        return self.run.scene.dt if self.run.control is None else self.run.control.dt
 
     def _courant_numbers(self, u, v, h) -> dict:
         """``diagnostics.courant_numbers`` at the run's dt (``_dt``) on whole-grid fields (rank 0)."""
-        pressure = "pressure_gradient" in self.run.scene.terms
+        pressure = "pressure_gradient" in self.run.scene.terms  # gravity waves only with the pressure gradient term
         return courant_numbers(self.grid, u, v, h, self._dt(), self.model.g, pressure)

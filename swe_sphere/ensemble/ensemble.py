@@ -22,6 +22,16 @@ def _renamed(old: str, new: str) -> None:
     warnings.warn(f"Ensemble.{old} is deprecated: {new}", DeprecationWarning, stacklevel=3)
 
 
+def _old_name(old: str, new: str, read) -> property:
+    """The old name ``old`` of ``Ensemble``, read-only: ``read(ensemble)`` after its ``_renamed`` line."""
+
+    def get(ens):
+        _renamed(old, new)
+        return read(ens)
+
+    return property(get)
+
+
 class Ensemble(Simulation):
     """Deprecated: ``Simulation(scene, members=N, initial=…)``, which it is. Constructing it warns
     once in one line; its old names warn where they are used.
@@ -72,30 +82,11 @@ class Ensemble(Simulation):
         with _arguments():
             super().add_callback(fn, every_steps=every_steps, every_days=every_days)
 
-    @property
-    def step_count(self) -> int:
-        _renamed("step_count", "step")
-        return self.core.step
-
-    @property
-    def day(self) -> float:
-        _renamed("day", "time")
-        return self.time
-
-    @property
-    def wall_time(self) -> float:
-        _renamed("wall_time", 'counters["wall_time"]')
-        return self.counters["wall_time"]
-
-    @property
-    def initial(self) -> str:
-        _renamed("initial", "initial_states")
-        return self.ensemble.initial_states
-
-    @property
-    def dt(self) -> float:
-        _renamed("dt", "scene.dt")
-        return self.scene.dt
+    step_count = _old_name("step_count", "step", lambda ens: ens.core.step)
+    day = _old_name("day", "time", lambda ens: ens.time)
+    wall_time = _old_name("wall_time", 'counters["wall_time"]', lambda ens: ens.counters["wall_time"])
+    initial = _old_name("initial", "initial_states", lambda ens: ens.ensemble.initial_states)
+    dt = _old_name("dt", "scene.dt", lambda ens: ens.scene.dt)
 
     def __getattr__(self, name: str):
         """The members' part's old attributes (``held``, ``layout``, ``units``, ``copies``, …)."""

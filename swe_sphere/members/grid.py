@@ -63,16 +63,6 @@ class MemberGrid(CubedSphere):
         self.halo, self.halo_spheremp = np.zeros(0, dtype=np.int64), np.zeros(0)
 
     @property
-    def nelem(self) -> int:
-        """Elements held: all members' (N·E)."""
-        return self.elements.size
-
-    @property
-    def nnodes(self) -> int:
-        """Element-local nodes of all members (N·n)."""
-        return self.nodes.size
-
-    @property
     def nunique(self) -> int:
         """Unique nodes of all members (N·u)."""
         return self.members * self.single.nunique

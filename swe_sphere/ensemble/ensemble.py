@@ -11,10 +11,9 @@ from pathlib import Path
 
 from ..core.arguments import integer_argument
 from ..core.errors import ArgumentError, SceneError
-from ..members.units import POLICIES
 from ..simulation.simulation import Simulation
 
-__all__ = ["POLICIES", "Ensemble"]
+__all__ = ["Ensemble"]
 
 
 def _renamed(old: str, new: str) -> None:

@@ -4,9 +4,5 @@ copies of one grid (``grid.MemberGrid``), how members start (``initial``: ``Pert
 launches on the copies, or each on a model of its own, and their stepper states in a restart
 file).
 
-May import: every layer below (``adjoint`` down to ``kernels``)."""
-
-from .grid import MemberGrid
-from .initial import MemberFile, Perturbation, Variants
-
-__all__ = ["MemberFile", "MemberGrid", "Perturbation", "Variants"]
+May import: every layer below (``adjoint`` down to ``kernels``). Its modules are imported by name
+(``members.grid``, ``members.initial``, ``members.units``)."""

@@ -128,10 +128,7 @@ class MemberFile:
                 raise ArgumentError(
                     f"{where}: no output at day {self.day} (it holds {', '.join(f'{d:g}' for d in days)})"
                 )
-            t = int(at[0])
-            return np.stack(
-                [np.asarray(ds[name][t], dtype=np.float64)[:, grid.gid] for name in ("u", "v", "h")], axis=1
-            )
+            return np.stack([np.asarray(ds[name][at[0]], dtype=np.float64)[:, grid.gid] for name in "uvh"], axis=1)
 
 
 # what a member's own model holds (``Variants.own_model``): its gravity and ∇⁴ coefficients

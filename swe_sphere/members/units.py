@@ -57,8 +57,8 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
     return asked or ("shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn")
 
 
-def shared_unit(scene, grid: CubedSphere, case, starts, fcor, backend, threads: int, options: dict, graphs: str):
-    """(the one ``Unit`` of every held member, the ``MemberGrid`` of their copies, one member's
+def shared_unit(scene, case, fcor, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):
+    """([the one ``Unit`` of every held member], the ``MemberGrid`` of their copies, one member's
     model or None): one model over the copies, its ∇⁴'s substeps from one member's operator (the
     one grid's spectral radius, not the copies'); ``fcor`` (held, n) each member's Coriolis
     parameter (None: the case's)."""
@@ -71,13 +71,14 @@ def shared_unit(scene, grid: CubedSphere, case, starts, fcor, backend, threads: 
         model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
     if fcor is not None:  # in place: the launches read it
         model.operators.fcor.assign(np.concatenate(list(fcor)))
-    return Unit.of(model, scene_stepper(scene, model), starts, backend, graphs), copies, one
+    return [Unit.of(model, scene_stepper(scene, model), starts, backend, graphs)], copies, one
 
 
-def own_units(scenes, grid: CubedSphere, cases, starts, backend, threads: int, options: dict, graphs: str) -> list:
-    """A ``Unit`` a held member (``scenes``, ``cases`` and ``starts`` its own, in order), each its
-    single run's model and stepper on one ``Topology`` of the whole grid; the ∇⁴'s spectral
-    radius, a property of the grid alone, found once."""
+def own_units(scenes, cases, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str) -> tuple:
+    """(a ``Unit`` a held member (``scenes``, ``cases`` and ``starts`` its own, in order), None,
+    the first one's model), as ``shared_unit``'s: each unit its single run's model and stepper on
+    one ``Topology`` of the whole grid; the ∇⁴'s spectral radius, a property of the grid alone,
+    found once."""
     topology = Topology(grid, backend, threads, parts=[np.arange(grid.nelem)])
     units, radius = [], None
     for scene, case, start in zip(scenes, cases, starts):
@@ -88,7 +89,7 @@ def own_units(scenes, grid: CubedSphere, cases, starts, backend, threads: int, o
             else:
                 model.hv.use_biharmonic_radius(radius)
         units.append(Unit.of(model, scene_stepper(scene, model), start[None], backend, graphs))
-    return units
+    return units, None, units[0].model
 
 
 def stepper_state(units: list, layout: str, held) -> dict:

@@ -99,21 +99,17 @@ class Members:
         self.options = {"device": backend.device, **options}
         self.blow_up, self.lines, self.out = blow_up, [], {}  # the lines of the members dropped
         self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
-        held = starts[self.held]
+        pick = lambda items: [items[k] for k in self.held]  # noqa: E731
         # one BLAS thread, as a single run's build: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
             threads = backend.threads() if options["threads"] is None else options["threads"]
+            parts = (grid, starts[self.held], backend, threads, self.options, graphs)
             if self.layout == "shared":
-                fcor = None if self.cases is None else [self.cases[k].fcor(grid.lat, grid.lon) for k in self.held]
-                unit, self.copies, self.one = shared_unit(
-                    scene, grid, case, held, fcor, backend, threads, self.options, graphs
-                )
-                self.units = [unit]
+                fcor = None if self.cases is None else [c.fcor(grid.lat, grid.lon) for c in pick(self.cases)]
+                self.units, self.copies, self.one = shared_unit(scene, case, fcor, *parts)
             else:
-                cases = self.cases or [case] * members
-                pick = lambda items: [items[k] for k in self.held]  # noqa: E731
-                self.units = own_units(pick(scenes), grid, pick(cases), held, backend, threads, self.options, graphs)
-                self.copies, self.one = None, self.units[0].model
+                cases = pick(self.cases or [case] * members)
+                self.units, self.copies, self.one = own_units(pick(scenes), cases, *parts)
         # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
         self.hs = self.side(lambda u: u.model.operators.hs.numpy())
         self.fcor = self.side(lambda u: u.model.operators.fcor.numpy())
@@ -235,25 +231,26 @@ class Members:
         bad-node rule, ``BadNodes.mask``) but those dropped, the first one's place (collective)."""
         bad = self.units[0].model.bad_nodes.mask(self.states())
         dropped = self.dropped
-        members = np.array([k for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped])
-        k = int(members[0])
-        node = int(np.argmax(bad[k]))
-        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
-        last = "; none left" if self.blow_up == "drop" else ""
+        members = [int(k) for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped]
+        where, last = self.place(np.argmax(bad[members[0]])), "; none left" if self.blow_up == "drop" else ""
         return (
-            f"member{'s' if members.size > 1 else ''} {', '.join(map(str, members))} of {self.members} blew up at "
-            f"step {step} (model time {day:.4f} days; member {k} first at lat {lat:.2f}, lon {lon:.2f} degrees): "
+            f"member{'s' if len(members) > 1 else ''} {', '.join(map(str, members))} of {self.members} blew up at "
+            f"step {step} (model time {day:.4f} days; member {members[0]} first at {where}): "
             f"every member stopped (policy: {POLICIES[self.blow_up]}{last})"
         )
 
     def drop(self, bad: list, step: int, day: float) -> None:
         """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` (model ``day``): their lines."""
         for i, _, node in bad:
-            lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
             self.lines.append(
                 f"member {self.held[i]} of {self.members} blew up at step {step} (model time {day:.4f} days; first "
-                f"at lat {lat:.2f}, lon {lon:.2f} degrees): dropped, the others go on (policy: {POLICIES['drop']})"
+                f"at {self.place(node)}): dropped, the others go on (policy: {POLICIES['drop']})"
             )
+
+    def place(self, node: int) -> str:
+        """Where the grid's element-local node ``node`` is, as a blow-up's line says it."""
+        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
+        return f"lat {lat:.2f}, lon {lon:.2f} degrees"
 
     @property
     def dropped(self) -> dict[int, int]:

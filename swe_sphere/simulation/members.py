@@ -19,28 +19,8 @@ from ..core.errors import ArgumentError
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import area_rms, member_statistics
+from ..members import initial, units
 from ..members.grid import MemberGrid, member_part
-from ..members.initial import (
-    MembersAlike,
-    Perturbation,
-    Variants,
-    alike_line,
-    check_band,
-    checked_states,
-    described,
-    initial_states,
-    stay_alike,
-)
-from ..members.units import (
-    POLICIES,
-    held_state,
-    on_rank_zero,
-    own_units,
-    shared_unit,
-    stepper_state,
-    unit_members,
-)
-from ..members.units import layout as members_layout
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from .build import check_memory
@@ -57,23 +37,23 @@ class MemberFields(WholeFields):
 
 
 class Members:
-    """``members`` (N ≥ 1) members of ``scene`` started from ``initial`` (``Simulation``'s doc),
+    """``members`` (N ≥ 1) members of ``scene`` started from ``start`` (``Simulation``'s ``initial``),
     their units built on ``backend`` over the ranks of ``comm`` (rank r steps the r-th of R
     contiguous shares, ``held``), laid out by ``layout`` and ``blow_up`` (``units.layout``,
-    ``POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Attributes as
+    ``units.POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Attributes as
     ``Simulation``'s doc lists them for members (``grid``, ``copies``, ``units``, ``alike``, …);
     ``out`` the units dropped ({unit index: step}, the integrator's, set by the driver)."""
 
-    def __init__(self, scene, members, initial, backend, comm, graphs, layout, blow_up, **options):
+    def __init__(self, scene, members, start, backend, comm, graphs, layout, blow_up, **options):
         asked = scene.ensemble  # the scene's [ensemble] table, or None
         if members is None and asked is None:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
         members = integer_argument("members", asked["members"] if members is None else members, 1)
-        if initial is None and asked is not None and asked["perturbation"] > 0:
-            initial = Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
-            check_band(initial.degrees, scene, "ensemble.degrees")
-        elif isinstance(initial, Perturbation):
-            check_band(initial.degrees, scene, "initial: perturbation degrees")
+        if start is None and asked is not None and asked["perturbation"] > 0:
+            start = initial.Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
+            initial.check_band(start.degrees, scene, "ensemble.degrees")
+        elif isinstance(start, initial.Perturbation):
+            initial.check_band(start.degrees, scene, "initial: perturbation degrees")
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:
@@ -86,19 +66,19 @@ class Members:
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
-        scenes = initial.scenes(scene, members) if isinstance(initial, Variants) else [scene] * members
-        self.cases = [s.make_case() for s in scenes] if isinstance(initial, Variants) else None
+        scenes = start.scenes(scene, members) if isinstance(start, initial.Variants) else [scene] * members
+        self.cases = [s.make_case() for s in scenes] if isinstance(start, initial.Variants) else None
         # the variants' values, as a restart file keeps them (JSON)
-        self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in initial.values.items()}
-        starts = initial_states(initial, grid, case, members, self.cases)
-        self.initial_states = described(initial)
+        self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in start.values.items()}
+        starts = initial.initial_states(start, grid, case, members, self.cases)
+        self.initial_states = initial.described(start)
         # measured on the starts made, whatever made them (a perturbation lost in h's rounding, a file, --vary)
-        self.alike = stay_alike(starts, initial)
-        if blow_up not in POLICIES:
-            raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, POLICIES))} (got {got(blow_up)})")
+        self.alike = initial.stay_alike(starts, start)
+        if blow_up not in units.POLICIES:
+            raise ArgumentError(f"blow_up must be one of {', '.join(map(repr, units.POLICIES))} (got {got(blow_up)})")
         self.options = {"device": backend.device, **options}
         self.blow_up, self.lines, self.out = blow_up, [], {}  # the lines of the members dropped
-        self.layout = members_layout(scene, initial, layout, backend.device, own=blow_up == "drop")
+        self.layout = units.layout(scene, start, layout, backend.device, own=blow_up == "drop")
         pick = lambda items: [items[k] for k in self.held]  # noqa: E731
         # one BLAS thread, as a single run's build: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
@@ -106,17 +86,17 @@ class Members:
             parts = (grid, starts[self.held], backend, threads, self.options, graphs)
             if self.layout == "shared":
                 fcor = None if self.cases is None else [c.fcor(grid.lat, grid.lon) for c in pick(self.cases)]
-                self.units, self.copies, self.one = shared_unit(scene, case, fcor, *parts)
+                self.units, self.copies, self.one = units.shared_unit(scene, case, fcor, *parts)
             else:
                 cases = pick(self.cases or [case] * members)
-                self.units, self.copies, self.one = own_units(pick(scenes), cases, *parts)
+                self.units, self.copies, self.one = units.own_units(pick(scenes), cases, *parts)
         # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
         self.hs = self.side(lambda u: u.model.operators.hs.numpy())
         self.fcor = self.side(lambda u: u.model.operators.fcor.numpy())
         self.g = [u.model.g for u in self.units for _ in range(u.members)]
         self.scorer = None
-        if self.alike and self.root:  # once built (a refusal says its own line alone)
-            warnings.warn(alike_line(members), MembersAlike, stacklevel=4)  # at the caller of Simulation
+        if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
+            warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
     def member(self, a: np.ndarray, k: int) -> np.ndarray:
         """The k-th held member's columns (..., n) of ``a`` (..., held·n), its members side by side."""
@@ -166,10 +146,10 @@ class Members:
             raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
         if states.shape != shape:
             raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
-        pairs = enumerate(zip(self.units, unit_members(self.layout, self.held)))
+        pairs = enumerate(zip(self.units, units.unit_members(self.layout, self.held)))
         going = [(u, k) for i, (u, k) in pairs if i not in self.out]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
-        checked_states(states[kept], self.case, "states", kept)
+        initial.checked_states(states[kept], self.case, "states", kept)
         for u, k in going:
             u.x.assign(np.concatenate(list(states[k]), axis=1))
 
@@ -236,7 +216,7 @@ class Members:
         return (
             f"member{'s' if len(members) > 1 else ''} {', '.join(map(str, members))} of {self.members} blew up at "
             f"step {step} (model time {day:.4f} days; member {members[0]} first at {where}): "
-            f"every member stopped (policy: {POLICIES[self.blow_up]}{last})"
+            f"every member stopped (policy: {units.POLICIES[self.blow_up]}{last})"
         )
 
     def drop(self, bad: list, step: int, day: float) -> None:
@@ -244,7 +224,7 @@ class Members:
         for i, _, node in bad:
             self.lines.append(
                 f"member {self.held[i]} of {self.members} blew up at step {step} (model time {day:.4f} days; first "
-                f"at {self.place(node)}): dropped, the others go on (policy: {POLICIES['drop']})"
+                f"at {self.place(node)}): dropped, the others go on (policy: {units.POLICIES['drop']})"
             )
 
     def place(self, node: int) -> str:
@@ -266,10 +246,10 @@ class Members:
     def restart_parts(self) -> tuple | None:
         """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
         file, on rank 0 (None on the others; collective): the members' arrays side by side."""
-        x, state = self.side(lambda u: u.x.numpy()), stepper_state(self.units, self.layout, self.held)
+        x, state = self.side(lambda u: u.x.numpy()), units.stepper_state(self.units, self.layout, self.held)
         policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
         if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
-            x, state = on_rank_zero(self.comm, x, state)
+            x, state = units.on_rank_zero(self.comm, x, state)
             if not self.root:
                 return None
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
@@ -279,11 +259,11 @@ class Members:
     def restore(self, ck) -> None:
         """The states and stepper histories of the checkpoint ``ck`` (an ensemble's) into the units."""
         n = ck.x.shape[1] // ck.members
-        for u, k in zip(self.units, unit_members(self.layout, self.held)):
+        for u, k in zip(self.units, units.unit_members(self.layout, self.held)):
             nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
             u.x.assign(ck.x[:, nodes])
             prefix = None if self.layout == "shared" else f"member{k[0]}_"
-            u.stepper.restore(held_state(ck.stepper_state, nodes, prefix))
+            u.stepper.restore(units.held_state(ck.stepper_state, nodes, prefix))
         dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
         self.out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
         self.initial_states = ck.initial.get("initial_states", self.initial_states)
@@ -294,7 +274,7 @@ class Members:
             "ensemble_layout": self.layout,
             "members": self.members,
             "initial_states": self.initial_states,
-            "blow_up_policy": POLICIES[self.blow_up],
+            "blow_up_policy": units.POLICIES[self.blow_up],
         }
 
 
@@ -303,5 +283,5 @@ def member_starts(ck) -> tuple:
     members from, and its layout and blow-up policy, as ``Members`` takes them."""
     n = ck.x.shape[1] // ck.members
     variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
-    initial = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2) if variants is None else Variants(variants)
-    return initial, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
+    start = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2) if variants is None else initial.Variants(variants)
+    return start, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")

@@ -50,9 +50,8 @@ class MemberGrid(CubedSphere):
         self.nelem_total = members * grid.nelem
         self.elements = np.arange(self.nelem_total)
         self.nodes = np.arange(members * n)
-        for name in _REPEATED:
-            a = getattr(grid, name)
-            setattr(self, name, np.ascontiguousarray(np.tile(a, (1,) * (a.ndim - 1) + (members,))))
+        for name in _REPEATED:  # np.tile repeats the last axis of a 2-d or 3-d array
+            setattr(self, name, np.ascontiguousarray(np.tile(getattr(grid, name), members)))
         k = np.arange(members)
         self.gid = (grid.gid[None, :] + (k * u)[:, None]).ravel().astype(np.int32)
         table = grid.dss_table[None].astype(np.int64)

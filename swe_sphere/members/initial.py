@@ -56,16 +56,14 @@ class Perturbation:
 
     def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
         """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""
-        if self.degrees is None:
-            xi = np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
-        else:
-            xi = self._band(grid, members)
         out = np.repeat(state[None], members, axis=0)
-        out[:, 2] += self.amplitude * xi[:, grid.gid]
+        out[:, 2] += self.amplitude * self._noise(grid, members)[:, grid.gid]
         return out
 
-    def _band(self, grid: CubedSphere, members: int) -> np.ndarray:
-        """(members, nunique) the fields of the class doc, each of area-weighted RMS 1."""
+    def _noise(self, grid: CubedSphere, members: int) -> np.ndarray:
+        """(members, nunique) the ξ_k of the class doc: white, or a band's fields each of area-weighted RMS 1."""
+        if self.degrees is None:
+            return np.random.default_rng(self.seed).standard_normal((members, grid.first.size))
         from ..cases.reference import synthesis
 
         lo, hi = self.degrees
@@ -172,25 +170,26 @@ class Variants:
         for key, values in self.values.items():
             if np.ndim(values) != 1 or len(values) != members:
                 raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
-        out = []
-        for k in range(members):
-            value = {key: float(v[k]) if not key.startswith("case.") else v[k] for key, v in self.values.items()}
-            params = {key[5:]: v for key, v in value.items() if key.startswith("case.")}
-            planet = {**scene.planet, **{key[7:]: v for key, v in value.items() if key.startswith("planet.")}}
-            nus = {key[15:]: v for key, v in value.items() if key.startswith("hyperviscosity.")}
-            if "nu" in nus:  # ν_div and ν_s follow ν where the scene ties them
-                nus = {**{k: nus["nu"] for k in ("nu_div", "nu_s") if getattr(scene, k) == scene.nu}, **nus}
-            for key in MODEL_KEYS:
-                if key in value and not (value[key] > 0 if key == "planet.gravity" else value[key] >= 0):
-                    bound = "> 0" if key == "planet.gravity" else ">= 0"
-                    raise ArgumentError(f"variants: member {k}: {key} must be {bound} (got {value[key]!r})")
-            member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet, **nus)
-            try:
-                member.make_case()
-            except (ValueError, TypeError) as err:
-                raise ArgumentError(f"variants: member {k}: {err}") from None
-            out.append(member)
-        return out
+        return [self._scene(scene, k) for k in range(members)]
+
+    def _scene(self, scene, k: int):
+        """Member k's scene (``scenes``): ``scene`` with each key at its k-th value, checked."""
+        value = {key: float(v[k]) if not key.startswith("case.") else v[k] for key, v in self.values.items()}
+        params = {key[5:]: v for key, v in value.items() if key.startswith("case.")}
+        planet = {**scene.planet, **{key[7:]: v for key, v in value.items() if key.startswith("planet.")}}
+        nus = {key[15:]: v for key, v in value.items() if key.startswith("hyperviscosity.")}
+        if "nu" in nus:  # ν_div and ν_s follow ν where the scene ties them
+            nus = {**{name: nus["nu"] for name in ("nu_div", "nu_s") if getattr(scene, name) == scene.nu}, **nus}
+        for key in MODEL_KEYS:
+            if key in value and not (value[key] > 0 if key == "planet.gravity" else value[key] >= 0):
+                bound = "> 0" if key == "planet.gravity" else ">= 0"
+                raise ArgumentError(f"variants: member {k}: {key} must be {bound} (got {value[key]!r})")
+        member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet, **nus)
+        try:
+            member.make_case()
+        except (ValueError, TypeError) as err:
+            raise ArgumentError(f"variants: member {k}: {err}") from None
+        return member
 
     def describe(self) -> str:
         """The values, as a run file's ``initial_states`` says them."""

@@ -15,6 +15,9 @@ from ..simulation.simulation import Simulation
 
 __all__ = ["Ensemble"]
 
+# the one line constructing an Ensemble warns
+DEPRECATED = "swe_sphere.Ensemble is deprecated: Simulation(scene, members=N, initial=...) is the one driver"
+
 
 def _renamed(old: str, new: str) -> None:
     """The one-line ``DeprecationWarning`` of an old name of ``Ensemble``."""
@@ -55,11 +58,7 @@ class Ensemble(Simulation):
     _of_members = True
 
     def __init__(self, scene, members: int | None = None, initial=None, *, device=None, progress=False, **kw):
-        warnings.warn(
-            "swe_sphere.Ensemble is deprecated: Simulation(scene, members=N, initial=...) is the one driver",
-            DeprecationWarning,
-            stacklevel=2,
-        )
+        warnings.warn(DEPRECATED, DeprecationWarning, stacklevel=2)
         super().__init__(scene, device, members=members, initial=initial, progress=progress, **kw)
 
     def step(self, n: int = 1) -> None:

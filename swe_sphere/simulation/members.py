@@ -90,22 +90,23 @@ class Members:
             else:
                 cases = pick(self.cases or [case] * members)
                 self.units, self.copies, self.one = units.own_units(pick(scenes), cases, *parts)
-        # hs and f on the host, read at every output time (the grid's and the members' alone); g a member
-        self.hs = self.side(lambda u: u.model.operators.hs.numpy())
-        self.fcor = self.side(lambda u: u.model.operators.fcor.numpy())
+        # hs and f on the host (held, n), read at every output time (the grid's and the members' alone); g a member
+        self.hs = self.each(lambda u: u.model.operators.hs.numpy())
+        self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
         self.g = [u.model.g for u in self.units for _ in range(u.members)]
         self.scorer = None
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
             warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
-    def member(self, a: np.ndarray, k: int) -> np.ndarray:
-        """The k-th held member's columns (..., n) of ``a`` (..., held·n), its members side by side."""
-        return member_part(a, k, self.grid.nnodes)
-
     def side(self, read) -> np.ndarray:
         """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
         parts = [read(u) for u in self.units]
         return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
+
+    def each(self, read) -> np.ndarray:
+        """(held, ..., n): ``side(read)`` cut into this rank's members' columns, a member a row."""
+        a = self.side(read)
+        return np.stack([member_part(a, k, self.grid.nnodes) for k in range(self.held.size)])
 
     def anywhere(self, flag: bool) -> bool:
         """Whether ``flag`` holds on any rank (collective)."""
@@ -127,8 +128,7 @@ class Members:
     # -- the states on (N, n) ------------------------------------------------------------
     def held_states(self) -> np.ndarray:
         """(held, 3, n): this rank's members' states (a dropped member's NaN)."""
-        x = self.side(lambda u: u.x.numpy())
-        states = np.stack([self.member(x, k) for k in range(self.held.size)])
+        states = self.each(lambda u: u.x.numpy())
         states[list(self.out)] = np.nan
         return states
 
@@ -158,10 +158,9 @@ class Members:
         rank 0 (a dropped member's NaN; None on the other ranks), as a single run's
         ``StateDiagnostics.gather_fields`` for its run files (``writers.RunFiles``), and this
         rank's members' own (``MemberFields.held``) on every rank (collective; ``x`` unread)."""
-        x, zeta = self.side(lambda u: u.x.numpy()), self.side(lambda u: u.model.operators.vorticity(u.x))
-        div = self.side(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
-        rows = [*(x[r] for r in range(3)), zeta, *(() if div is None else (div,))]
-        held = [np.stack([self.member(a, k) for a in rows]) for k in range(self.held.size)]
+        x, zeta = self.each(lambda u: u.x.numpy()), self.each(lambda u: u.model.operators.vorticity(u.x))
+        div = self.each(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
+        held = [np.stack([*x[k], zeta[k], *(() if div is None else (div[k],))]) for k in range(self.held.size)]
         shown = [np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)]
         each = shown if self.comm is None else self.comm.gather(shown, root=0)
         if not self.root:
@@ -188,22 +187,20 @@ class Members:
                 one = self.one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self.options)
             # each variant's own truth, an exact solution (a reference holds the scene's values only)
             cases, ref = ([self.case], self.scene.reference_file) if self.cases is None else (self.cases, None)
-            self.scorer = [Scorer(c, one, one.topology, self.grid, self.member(self.hs, 0), ref) for c in cases]
+            self.scorer = [Scorer(c, one, one.topology, self.grid, self.hs[0], ref) for c in cases]
         return [self.scorer[k % len(self.scorer)].errors(t, xk, *xk) for k, xk in zip(self.held, held)]
 
     def invariants_of(self, held: list) -> list[dict[str, float]]:
         """Each of this rank's members' invariants (``model.diagnostics.invariants`` on the one grid:
         the bits of the single run's) from their rows ``held`` (``MemberFields.held``)."""
-        one = self.member
         return [
-            invariants(self.grid, *rows[:3], one(self.hs, k), rows[3], one(self.fcor, k), self.g[k])
+            invariants(self.grid, *rows[:3], self.hs[k], rows[3], self.fcor[k], self.g[k])
             for k, rows in enumerate(held)
         ]
 
     def h_spread_rms(self) -> float:
         """``Simulation.h_spread_rms``."""
-        h = np.stack([self.grid.to_unique(states[2]) for states in self.states()])
-        return area_rms(self.grid, member_statistics(h)[1])
+        return area_rms(self.grid, member_statistics(self.grid.to_unique(self.states()[:, 2]))[1])
 
     # -- blow-ups and dropped members -----------------------------------------------------
     def blow_up_line(self, step: int, day: float) -> str:

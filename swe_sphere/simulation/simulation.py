@@ -270,7 +270,7 @@ class Simulation:
         self.members, self.case, self.grid, self.root, self.dfi = m.members, m.case, m.grid, m.root, None
         self.progress = self.progress and m.root
         self.model = m.units[0].model
-        self.topology, self.hs = self.model.topology, m.member(m.hs, 0)
+        self.topology, self.hs = self.model.topology, m.hs[0]
         # the one step loop over the units: a block watched, a checked step plain (``member_step``)
         self.core = Integrator(m.units, FixedDt(member_step), anywhere=m.anywhere, drop=blow_up == "drop", lone=False)
         self.core.out = m.out  # the units dropped

@@ -41,17 +41,13 @@ class Perturbation:
     def __post_init__(self):
         number_argument("perturbation amplitude", self.amplitude, "m", low=0.0)
         integer_argument("perturbation seed", self.seed, 0)
-        if self.degrees is not None:
-            d = self.degrees
-            if not (
-                isinstance(d, tuple | list)
-                and len(d) == 2
-                and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in d)
-                and 1 <= d[0] <= d[1] <= MAX_DEGREE
-            ):
-                raise ArgumentError(
-                    f"perturbation degrees must be two integers 1 <= l_min <= l_max <= {MAX_DEGREE} (got {got(d)})"
-                )
+        d = self.degrees
+        ok = isinstance(d, tuple | list) and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in d)
+        if d is not None and not (ok and len(d) == 2 and 1 <= d[0] <= d[1] <= MAX_DEGREE):
+            raise ArgumentError(
+                f"perturbation degrees must be two integers 1 <= l_min <= l_max <= {MAX_DEGREE} (got {got(d)})"
+            )
+        if d is not None:
             object.__setattr__(self, "degrees", (int(d[0]), int(d[1])))
 
     def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:

@@ -50,11 +50,10 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
         ("their own g or ν", isinstance(initial, Variants) and initial.own_model),
     ]
     why = [cause for cause, holds in causes if holds]
-    if why:
-        if asked == "shared":
-            raise ArgumentError(f"layout: these members need a model each ({', '.join(why)}): 'in_turn'")
-        return "in_turn"
-    return asked or ("shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn")
+    if why and asked == "shared":
+        raise ArgumentError(f"layout: these members need a model each ({', '.join(why)}): 'in_turn'")
+    default = "shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn"
+    return "in_turn" if why else asked or default
 
 
 def shared_unit(scene, case, fcor, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):

@@ -24,7 +24,7 @@ control (``--pair`` at ``--rtol``) and CFL control (``--cfl-stepper`` at ``--cfl
 (b) **Its parts**, ms of CPU each over ``--repeat`` calls: the stepper's step at one Δt; at a Δt
     never taken before every step (the recorded launches take the new coefficients as arguments
     in place, nothing recorded; before that change, each such step recorded its lists again);
-    at three Δt of the controller's grid in turn (``simulation.adaptive.on_grid``: fewer than
+    at three Δt of the controller's grid in turn (``integrator.control.on_grid``: fewer than
     ``LAUNCH_VARIANTS``, so each replays its own lists as recorded); one error norm
     (``control.ErrorNorm``) or, under "cfl", one pass of the Courant numbers (``control.CourantMax``);
     and one controlled step (``StepControl.step``: the state kept, the
@@ -55,8 +55,8 @@ from results import recorded
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.runtime import init_warp
+from swe_sphere.integrator.control import on_grid
 from swe_sphere.simulation import checkpoint
-from swe_sphere.simulation.adaptive import on_grid
 from swe_sphere.simulation.simulation import Simulation
 
 

@@ -247,7 +247,10 @@ class StepControl:
                     if self.courant is not None and self._pass_likely(dt):
                         self.courant.launch(x)
                         queued = True
-                    ahead = self._launch_ahead(x, t + dt, dt)
+                    if self.xs is None:
+                        self.xs = wp.zeros_like(x)
+                    wp.copy(self.xs, x)  # the next try's start, launched on x
+                    ahead = _Ahead(t + dt, dt, *self._try(x, t + dt, dt))
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
             tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
             ok, proposal, err = self._propose(x if ahead is None else self.xs, dt, queued)
@@ -277,14 +280,6 @@ class StepControl:
         self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
         saved = self.stepper.checkpoint() if self.error else None
         return saved, self.unit.try_step(x)
-
-    def _launch_ahead(self, x, t: float, dt: float) -> _Ahead:
-        """The next try, of ``dt`` from t (s), launched on x, its start kept in ``xs``."""
-        if self.xs is None:
-            self.xs = wp.zeros_like(x)
-        wp.copy(self.xs, x)
-        saved, stats = self._try(x, t, dt)
-        return _Ahead(t, dt, saved, stats)
 
     def _undo(self, x, ahead: _Ahead, start) -> None:
         """x and the stepper back to where the try launched ahead started (its state ``start``)."""

@@ -6,7 +6,7 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
 - each state of a block is flagged on the device (``BadNodes.watch``) and the flag read once at
   the block's end with the solvers' device counters (``Stepper.counts``), so that a step needs
   no host round trip (a GPU step is its launches, or one graph);
-- a block that found trouble is put back to its start (states, stepper histories, the driver's
+- a block that found trouble is put back to its start (states, stepper histories, the
   counters) and taken again a checked step at a time (``BadNodes.first``), to name the step and
   the place: the same bits as a check every step;
 - with ``drop``, a member bad at a step goes back to its last good state and is not stepped
@@ -109,19 +109,8 @@ class Observer:
     def after(self, step: int, done: int) -> None:
         """``done`` steps to ``step`` found good."""
 
-    def keep(self):
-        """The driver's counters at a block's start, handed back to ``put_back`` on trouble."""
-
-    def put_back(self, kept) -> None:
-        """The counters ``keep`` returned, back."""
-
     def dropped(self, step: int, bad: list) -> None:
         """Units (index, unit, first bad node) ``bad`` dropped at ``step`` (``Integrator.drop``)."""
-
-    def vouched(self) -> bool:
-        """Whether the step just taken found its own state good (a controlled step's error norm):
-        then it is not checked again."""
-        return False
 
 
 def trouble_line(model, x, bad: tuple, day: float, of: str = "") -> str:
@@ -220,10 +209,9 @@ class ControlledDt:
     each step an accepted step of ``control`` (a ``control.StepControl``: its tries,
     rejected ones retried) toward the first of ``days`` (model days from t = 0, increasing) after
     the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
-    step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``; None:
-    never). ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
+    step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``). ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
 
-    def __init__(self, control, days, quiet=None):
+    def __init__(self, control, days, quiet):
         self.control, self.days, self.quiet = control, list(days), quiet
 
     @property
@@ -234,7 +222,7 @@ class ControlledDt:
         """An accepted step j + 1 of ``unit`` toward the next day, its solvers' device counters read
         (``Stepper.counts``: raises ``StepFailure``); the ``StepStats`` of its tries."""
         day = next(d for d in self.days if d * DAY > self.control.t)
-        return counted(self.control.step_to(unit.x, day, self.quiet is not None and self.quiet(j)), unit.stepper)
+        return counted(self.control.step_to(unit.x, day, self.quiet(j)), unit.stepper)
 
 
 class Rewind:
@@ -274,17 +262,12 @@ class Integrator:
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
         self.control = None  # the step control (``control.StepControl``) under a controlled Δt
 
-    def active(self) -> list:
-        """(index, unit) of the units still stepped (all but those dropped)."""
-        return [(i, u) for i, u in enumerate(self.units) if i not in self.out]
-
-    def advance(self, stop_step: int, observer: Observer | None = None) -> Stop:
+    def advance(self, stop_step: int, observer: Observer) -> Stop:
         """Blocks of steps to ``stop_step`` (``observer.block_end``), ``observer.after`` called
         after each good block or checked step; a block that finds trouble is taken again from
         its start a checked step at a time. Returns why it stopped (``Stop``): nothing, a
         signal between blocks (``observer.asked``) or an abandoned step, or trouble in a checked
         step (``step`` is then the last good step; a bad state is kept for its report)."""
-        observer = observer or Observer()
         again_to = self.step  # steps up to here are taken again one at a time: their block found trouble
         while self.step < stop_step:
             b = self.step
@@ -312,10 +295,11 @@ class Integrator:
         was good, else "bad", "unconverged", "failure" (a ``StepFailure`` in step m + 1) or
         "abandoned" (step m + 1; detail the signal), and then ``step`` is b again and, but for
         a checked step's bad state, the units are put back."""
-        active = self.active()
+        active = [(i, u) for i, u in enumerate(self.units) if i not in self.out]  # all but those dropped
         check = observer.checked(b, e)
         saved = self.rewind.keep(active, watched and check or self.drop)
-        kept = observer.keep() if watched else None
+        # the counts at the block's start, put back where the block is taken again
+        kept = (self.counters["rhs_evals"], dict(self.counters["iterations"])) if watched else None
         t0, cpu0 = time.perf_counter(), time.process_time()
         m, trouble, detail = self._steps(active, b, e, watched and check, observer)
         if check and watched:
@@ -330,7 +314,7 @@ class Integrator:
             if watched or trouble == "abandoned":
                 self.rewind.put_back(active, saved, watched)
             if watched:
-                observer.put_back(kept)
+                self.counters["rhs_evals"], self.counters["iterations"] = kept
         return m, trouble, detail
 
     def _steps(self, active: list, b: int, e: int, watch: bool, observer: Observer) -> tuple:
@@ -379,7 +363,7 @@ class Integrator:
         """A checked step's first bad nodes (one read a unit), members dropped there (``drop``)
         while others are good. Returns (trouble, detail): (None, None) or ("bad", the
         [(index, unit, node)] bad)."""
-        if observer.vouched():
+        if self.control is not None and self.control.vouched():  # its state found good by the step control
             return None, None
         bad = [(i, u, node) for i, u in active if (node := u.model.bad_nodes.first(u.x)) is not None]
         wp.synchronize_device(active[0][1].x.device)

@@ -1,6 +1,6 @@
 """A run's state beside its built parts (issue 100): ``RunState``, what the simulation's
 collaborators (its diagnostics, ``state_diagnostics.StateDiagnostics``) read of the run, not the
-``Simulation``: the step, the state x and the last good one, the stepper (the integrator's), the
+``Simulation``: the step, the state x, the stepper (the integrator's), the
 scene it runs, its step control, its t = 0 diagnostics and counters, the model time reached."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from ..integrator.core import Integrator, forwarded
 
 @dataclass
 class RunState:
-    """A run's state: ``core`` its integrator (the step, and one unit's state x (3, N), last good
-    state and stepper), ``scene`` the scene it runs (replaced by a fitted Δt or a lengthened run),
+    """A run's state: ``core`` its integrator (the step, and one unit's state x (3, N) and
+    stepper), ``scene`` the scene it runs (replaced by a fitted Δt or a lengthened run),
     ``initial`` its t = 0 diagnostics (relative changes are taken against them); ``counters`` and
     ``control`` (a ``StepControl``; None at a fixed Δt) the integrator's."""
 
@@ -27,7 +27,6 @@ class RunState:
     counters = forwarded("core.counters", "The steps' counts (the integrator's).", False)
     control = forwarded("core.control", "The step control (the integrator's; None at a fixed Δt).")
     x = forwarded("core.units.0.x", "The state (3, N) (the one unit's).", False)
-    last_good = forwarded("core.units.0.start", "The last good state (3, N) (the one unit's start).", False)
     stepper = forwarded("core.units.0.stepper", "The stepper (the one unit's).", False)
 
     @property

@@ -793,8 +793,8 @@ class Simulation:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
         lines = lines if self.root else None
-        drop = None if self.ensemble is None else lambda bad, step: self.ensemble.drop(bad, step, self.scene.day(step))
-        parts = (self.run_state, self.activities, self, ledger, stop_step, self.check_every, signals, bar, lines)
+        drop = None if self.ensemble is None else lambda step, bad: self.ensemble.drop(bad, step, self.scene.day(step))
+        parts = (self.run_state, self.activities, self, ledger, self.check_every, signals, bar, lines)
         observer = RunObserver(*parts, dropped=drop)
         last_day = self.scene.days if until_day is None else until_day
         return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._describe)

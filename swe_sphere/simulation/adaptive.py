@@ -18,12 +18,8 @@ def steered(control: StepControl, last_day: float, activities: dict) -> Controll
     ``AtDays`` activity of ``activities`` is due at (output and restart times) up to ``last_day``
     and ``last_day`` in turn, each landed on exactly, a try launched ahead only where no activity
     of whole steps (``EverySteps``, ``AtSteps``: they read x) is due after the step."""
-    days = {float(last_day)}
-    counted = []  # the schedules of whole steps: due after a step, they read x
-    for activity in activities.values():
-        if isinstance(activity.schedule, AtDays):
-            days.update(activity.schedule.days)
-        else:
-            counted.append(activity.schedule)
+    schedules = [a.schedule for a in activities.values()]
+    days = {float(last_day), *(d for s in schedules if isinstance(s, AtDays) for d in s.days)}
+    counted = [s for s in schedules if not isinstance(s, AtDays)]  # of whole steps: due after a step, they read x
     ahead = sorted(d for d in days if control.t < d * DAY and d <= last_day)  # not past the run's last day
     return ControlledDt(control, ahead, lambda j: not any(s.due(j + 1) for s in counted))

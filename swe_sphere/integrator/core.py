@@ -250,8 +250,9 @@ class Integrator:
     block of one step is checked at once (a run's first step, to time it alone) rather than
     watched. ``rewind``: how a block is kept and put back (``Rewind``). ``step``: the steps
     taken; ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
-    name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files;
-    ``control``: the ``control.StepControl`` of a controlled Δt (None: fixed)."""
+    name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files, put
+    back with a block taken again; ``control``: the ``control.StepControl`` of a controlled Δt
+    (None: fixed), which vouches for its steps' states (``StepControl.vouched``)."""
 
     def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True, rewind=None):
         self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere

@@ -43,7 +43,7 @@ def _members(args):
     L_MIN,L_MAX]``, ``--initial FILE`` or ``--vary KEY=V1,...``) as a ``studies.sweep.Members``, or
     None without them; ValueError for one without the other, two starts, or --seed or
     --perturbation-degrees without --perturbation."""
-    from ..members import MemberFile, Perturbation, Variants
+    from ..members.initial import MemberFile, Perturbation, Variants
     from ..studies.sweep import Members
 
     starts = {"--perturbation": args.perturbation, "--initial": args.initial, "--vary": args.vary}

@@ -79,14 +79,10 @@ class Stop:
 class Observer:
     """What a driver adds around ``Integrator.advance``'s steps; each hook a no-op here."""
 
-    def asked(self) -> int:
-        """A stop asked between blocks: the signal's number, 0 for none."""
+    def asked(self, within: bool = False) -> int:
+        """A stop asked between blocks, or ``within`` a block between a lone unit's steps (where
+        every process steps one unit): the signal's number, 0 for none."""
         return 0
-
-    def within(self) -> int:
-        """A stop asked between a lone unit's steps within a block (``asked``: every process
-        steps one unit)."""
-        return self.asked()
 
     def block_end(self, b: int) -> int:
         """The last step of the block after step b (the state read then: activities due); b: no
@@ -324,7 +320,7 @@ class Integrator:
         m, one = b, len(active) == 1
         for _, u in active:
             for j in range(b, e):
-                if one and j > b and observer.within():  # the loop stops at j, once checked
+                if one and j > b and observer.asked(within=True):  # the loop stops at j, once checked
                     return m, None, None
                 try:
                     observer.stepping(True)

@@ -17,7 +17,7 @@ class RunObserver(Observer):
     read as it is at each step), each called with ``caller`` (the ``Simulation``:
     what a user's callback is handed, read by nothing here), ``ledger``
     its ``summary.Ledger`` (the steps' counts and times: its ``add`` and ``account`` the hooks),
-    ``signals`` a ``StopSignals`` (its ``asked`` the hook); after good steps the activities due
+    ``signals`` a ``StopSignals``; after good steps the activities due
     and the progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of
     steps, its states flagged on the device and read once at its end (the integrator's guard:
     its module doc), ends every ``every`` steps (``Simulation.check_every``) and at each step an
@@ -31,7 +31,7 @@ class RunObserver(Observer):
     def __init__(self, run, activities: dict, caller, ledger, every: int, signals, bar, lines=None, dropped=None):
         self.run, self.activities, self.caller, self.ledger, self.first_step = run, activities, caller, ledger, run.step
         self.signals, self.bar, self.lines, self.steered, self.dropped = signals, bar, lines, None, dropped
-        self.every, self.asked, self.add, self.account = max(1, int(every)), signals.asked, ledger.add, ledger.account
+        self.every, self.add, self.account = max(1, int(every)), ledger.add, ledger.account
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of
@@ -46,8 +46,9 @@ class RunObserver(Observer):
         due = (a.schedule.next_after(b) for a in self.activities.values())
         return min(next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b))
 
-    def within(self) -> int:
-        return self.asked() if self.dropped is None else 0  # an ensemble's ranks may hold units unalike
+    def asked(self, within: bool = False) -> int:
+        # an ensemble's ranks may hold units unalike: between blocks alone
+        return 0 if within and self.dropped is not None else self.signals.asked()
 
     def stepping(self, on: bool) -> None:
         if self.steered is None and self.dropped is None:  # abandoned from here

@@ -205,7 +205,8 @@ class ControlledDt:
     each step an accepted step of ``control`` (a ``control.StepControl``: its tries,
     rejected ones retried) toward the first of ``days`` (model days from t = 0, increasing) after
     the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
-    step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``). ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
+    step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``).
+    ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
 
     def __init__(self, control, days, quiet):
         self.control, self.days, self.quiet = control, list(days), quiet

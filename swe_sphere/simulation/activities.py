@@ -4,12 +4,12 @@ object with ``due(step) -> bool`` and ``next_after(step) -> int | None``; under 
 ``schedules.AtDays``, due at days the steps land on) and a call
 ``activity(sim)``, made after each step the schedule names once the state there is known to be
 good (``sim.step`` is that step). A run's own activities (``writers.RunFiles``,
-``writers.Checkpointer``, ``Log``) read the run state and parts they were made with, not ``sim``.
+``writers.Checkpointer``, ``log_activity``) read the run state and parts they were made with, not ``sim``.
 
 ``Simulation.activities`` holds them by name, called in order: during ``run`` the run file and its
 streams (``"run_file"``, ``writers.RunFiles``), the restart file (``"checkpointer"``,
 ``writers.Checkpointer``), then those the user added (``Simulation.add_callback``, or an output
-writer of one's own set as ``sim.activities[name] = writer``), then the log (``"log"``, ``Log``).
+writer of one's own set as ``sim.activities[name] = writer``), then the log (``"log"``, ``log_activity``).
 Blocks of steps end at every step some activity is due (``guard.RunObserver.block_end``), so an
 activity always sees the state of its own step.
 """
@@ -57,18 +57,15 @@ class Callback:
         self.fn(sim)
 
 
-@dataclass
-class Log:
-    """``log(line)`` with ``StateDiagnostics.log_line`` every ``schedule`` steps (rank 0; the
-    fields are gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its run
-    state and diagnostics) recorded at this step when it did; the owner it is called with not read."""
+def log_activity(log: Callable, schedule: EverySteps, files: RunFiles) -> Callback:
+    """``log(line)`` with ``StateDiagnostics.log_line`` every ``schedule`` steps (a ``Callback``;
+    rank 0, the fields gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its
+    run state and diagnostics) recorded at this step when it did; the owner it is called with not
+    read."""
 
-    log: Callable
-    schedule: EverySteps
-    files: RunFiles
-
-    def __call__(self, owner) -> None:
-        files = self.files
+    def call(owner) -> None:
         line = files.diagnostics.log_line(files.history[-1] if is_due(files.schedule, files.run) else None)
         if line is not None:
-            self.log(line)
+            log(line)
+
+    return Callback(call, schedule)

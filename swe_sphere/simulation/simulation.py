@@ -38,7 +38,7 @@ from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded, troubl
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.units import member_step
 from . import checkpoint as ckpt
-from .activities import Log, add_callback
+from .activities import add_callback, log_activity
 from .build import ON_ROOT, build
 from .checkpoint import Checkpoint, continued, restore_run, write_restart
 from .guard import RunObserver
@@ -848,5 +848,5 @@ class Simulation:
         user's), a single run's stepper's solver counters read with the bad-state check."""
         every = self.scene.log_every_steps
         one = self.ensemble is None
-        more = {"log": Log(log, EverySteps(every), files)} if log is not None and every and one else {}
+        more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
         return own_activities(self.activities, files, ckp, self.stepper if one else None, **more)

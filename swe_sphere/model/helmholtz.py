@@ -391,7 +391,7 @@ class HelmholtzSolver:
     def _use(self, a: float) -> None:
         """a's guess history and solve graphs made the most recently used; those of the least
         recently used other a's dropped past ``KEPT_COEFFICIENTS`` (a basis is its A's; a
-        controlled run's Δt returns to a few values of its grid, ``simulation.adaptive.on_grid``,
+        controlled run's Δt returns to a few values of its grid, ``integrator.control.on_grid``,
         and finds their bases and graphs again)."""
         if a in self._histories:
             self._histories[a] = self._histories.pop(a)

@@ -67,7 +67,7 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
 def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
     """The steps of a run (a ``Simulation``'s, of one member or many) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
-    own policy's at a fixed Δt; under ``control`` (an ``adaptive.StepControl``) its policy
+    own policy's at a fixed Δt; under ``control`` (an ``integrator.control.StepControl``) its policy
     (``adaptive.steered``: each accepted step a block, landed on the days the ``activities`` are
     due at and on ``last_day``; ``stop_step`` then unbounded), rewind (``adaptive.Tries``) and lone
     steps the control's from then on (a controlled run steps by nothing else). Returns why the

@@ -1,7 +1,7 @@
 """The simulation: a scene's model, stepper and state, and the loop that steps them, on
 Oceananigans' pattern: one short loop (``Simulation.run``) and around its steps a small part each
 (the package's doc lists them), of one member or N (issue 116: one driver). Its run loop, restarts
-and driving from Python are its own methods over the functions of ``loop`` and ``restart`` (no
+and driving from Python are its own methods over the functions of ``loop`` and ``checkpoint`` (no
 mixins); ``build`` makes a single run's parts, ``members.Members`` N members', and the state's
 diagnostics are a component (``diagnostics``: ``state_diagnostics`` or the members')."""
 
@@ -285,7 +285,7 @@ class Simulation:
             self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
         self.run_state = RunState(self.core, scene)
 
-    # -- restarts and branches (``restart``)
+    # -- restarts and branches (``checkpoint``)
     @classmethod
     def from_checkpoint(
         cls,
@@ -770,16 +770,12 @@ class Simulation:
         ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
         state and its stepper's history, the member count, the layout and the variants."""
         kept = {"overwrite": overwrite, "restart_every": restart_every}
-        if self.ensemble is not None:
-            parts = self.ensemble.restart_parts()
-            if parts is None:
-                return Path(path)
-            x, state, initial, grid = parts
-            return write_restart(path, self.run_state, x, state, initial, grid, members=self.members, **kept)
-        x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
-        if not self.root:
-            return Path(path)
-        return write_restart(path, self.run_state, x, state, self.initial, self.grid, **kept)
+        if self.ensemble is not None:  # (x, stepper states, initial, grid) on rank 0, else None
+            parts, kept["members"] = self.ensemble.restart_parts(), self.members
+        else:  # gathered and the stepper's state taken on every rank, written by rank 0
+            x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
+            parts = (x, state, self.initial, self.grid) if self.root else None
+        return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
     # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities
 

@@ -181,7 +181,7 @@ class TrialSteps:
 
     def checkpoint(self):
         """What ``rollback`` needs to undo the next step (a try that error control rejects,
-        ``simulation.adaptive.StepControl``): ``state()`` here; a stepper whose state is dear
+        ``integrator.control.StepControl``): ``state()`` here; a stepper whose state is dear
         to gather keeps device copies instead (``helmholtz_steps.HelmholtzSteps``)."""
         return self.state()
 

@@ -109,7 +109,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     def carry_last_stage(self) -> bool:
         """Step an FSAL pair (``fsal``) with its last stage carried over as the next step's
         first, s − 1 RHS evaluations a step instead of s (error control, where the estimate is
-        read every step: ``simulation.adaptive.StepControl``): after the ∇⁴ step, F(x(n+1)) is
+        read every step: ``integrator.control.StepControl``): after the ∇⁴ step, F(x(n+1)) is
         evaluated once, and its DSS writes the estimate's last term (weight d_s = b_s − b̂_s)
         and the next step's first combinations at this step's Δt, ahead (``rhs_update``: the
         bits of evaluating them at the next step). A next step at another Δt, or after

@@ -16,8 +16,8 @@ from ..core.arguments import instance_argument, integer_argument
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 
-# per-node arrays (..., n) repeated member after member
-_REPEATED = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx")
+# per-node arrays (..., n) and the unique nodes' areas (u,) repeated member after member
+_REPEATED = ("xyz", "lat", "lon", "east", "north", "D", "Dinv", "metdet", "spheremp", "rspheremp", "dx", "area")
 
 
 class MemberGrid(CubedSphere):
@@ -58,7 +58,6 @@ class MemberGrid(CubedSphere):
         self.dss_table = np.where(table >= 0, table + (k * n)[:, None, None], -1).reshape(-1, table.shape[2])
         self.dss_table = self.dss_table.astype(np.int32)
         self.first = (grid.first[None, :] + (k * n)[:, None]).ravel().astype(np.int32)
-        self.area = np.tile(grid.area, members)
         self.halo, self.halo_spheremp = np.zeros(0, dtype=np.int64), np.zeros(0)
 
     @property

@@ -63,8 +63,7 @@ class Perturbation:
         from ..cases.reference import synthesis
 
         lo, hi = self.degrees
-        m = np.concatenate([np.full(hi + 1 - k, k) for k in range(hi + 1)])  # healpy's order: m-major
-        l = np.concatenate([np.arange(k, hi + 1) for k in range(hi + 1)])
+        m, l = np.triu_indices(hi + 1)  # healpy's order: m-major (m = 0 … hi, l = m … hi)
         std = np.where(l >= lo, 1.0 / np.sqrt(2 * l + 1), 0.0)
         z = np.random.default_rng(self.seed).standard_normal((members, 2, l.size))
         alm = std * (z[:, 0] + 1j * np.where(m > 0, z[:, 1], 0.0))

@@ -174,8 +174,7 @@ class Members:
         single run's ``StateDiagnostics.diagnose`` for its run files (collective); ``whole`` this
         step's ``gather_fields`` where taken (``x`` unread)."""
         held = (self.gather_fields() if whole is None else whole).held
-        errors = self.errors_of([m[:3] for m in held], t)
-        each = [{**d, **e} for d, e in zip(self.invariants_of(held), errors)]
+        each = [{**d, **e} for e, d in zip(self.errors_of([m[:3] for m in held], t), self.invariants_of(held))]
         each = self.everyone(dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each))
         return {key: np.array([d[key] for d in each]) for key in each[0]}
 

@@ -47,8 +47,7 @@ class Perturbation:
             raise ArgumentError(
                 f"perturbation degrees must be two integers 1 <= l_min <= l_max <= {MAX_DEGREE} (got {got(d)})"
             )
-        if d is not None:
-            object.__setattr__(self, "degrees", (int(d[0]), int(d[1])))
+        object.__setattr__(self, "degrees", None if d is None else (int(d[0]), int(d[1])))
 
     def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
         """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""
@@ -255,12 +254,10 @@ def checked_states(states: np.ndarray, case, name: str, members=None) -> np.ndar
 
 def described(initial) -> str:
     """The members' start in words, as a run file's ``initial_states`` says it."""
-    if initial is None:
-        return "the case's"
     if isinstance(initial, Perturbation):
         d = initial.degrees
         kind = "white noise" if d is None else f"noise in spherical-harmonic degrees {d[0]} to {d[1]}"
         return f"perturbed: h + {initial.amplitude:g} m {kind}, seed {initial.seed}"
     if isinstance(initial, MemberFile):
         return f"from {initial.path}" + ("" if initial.day is None else f" at day {initial.day:g}")
-    return initial.describe() if isinstance(initial, Variants) else "given"
+    return "the case's" if initial is None else initial.describe() if isinstance(initial, Variants) else "given"

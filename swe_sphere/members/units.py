@@ -134,9 +134,3 @@ def member_step(unit: Unit, j: int, watch: bool):
     """Step j + 1 of a unit's members: a block's watched as a graph where it may be
     (``GraphedSteps``), a checked step's (a block taken again) launched plainly."""
     return unit.graphed.step(unit.stepper, unit.model, unit.x, True) if watch else unit.stepper.step(unit.x)
-
-
-def unit_members(layout: str, held) -> list:
-    """The members (indices) of each unit of a rank holding ``held``, in order: all in one unit
-    ("shared"), or one a unit ("in_turn")."""
-    return [held] if layout == "shared" else list(held[:, None])

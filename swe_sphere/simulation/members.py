@@ -42,6 +42,7 @@ class Members:
     contiguous shares, ``held``), laid out by ``layout`` and ``blow_up`` (``units.layout``,
     ``units.POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Attributes as
     ``Simulation``'s doc lists them for members (``grid``, ``copies``, ``units``, ``alike``, …);
+    ``unit_held`` each unit's members (their indices), in order;
     ``out`` the units dropped ({unit index: step}, the integrator's, set by the driver)."""
 
     def __init__(self, scene, members, start, backend, comm, graphs, layout, blow_up, **options):
@@ -79,6 +80,8 @@ class Members:
         self.options = {"device": backend.device, **options}
         self.blow_up, self.lines, self.out = blow_up, [], {}  # the lines of the members dropped
         self.layout = units.layout(scene, start, layout, backend.device, own=blow_up == "drop")
+        # each unit's members (indices): all in one unit ("shared"), or one a unit ("in_turn")
+        self.unit_held = [self.held] if self.layout == "shared" else list(self.held[:, None])
         pick = lambda items: [items[k] for k in self.held]  # noqa: E731
         # one BLAS thread, as a single run's build: the ∇⁴'s power iteration takes 40 norms
         with threadpool_limits(limits=1, user_api="blas"):
@@ -146,7 +149,7 @@ class Members:
             raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
         if states.shape != shape:
             raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
-        pairs = enumerate(zip(self.units, units.unit_members(self.layout, self.held)))
+        pairs = enumerate(zip(self.units, self.unit_held))
         going = [(u, k) for i, (u, k) in pairs if i not in self.out]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         initial.checked_states(states[kept], self.case, "states", kept)
@@ -255,7 +258,7 @@ class Members:
     def restore(self, ck) -> None:
         """The states and stepper histories of the checkpoint ``ck`` (an ensemble's) into the units."""
         n = ck.x.shape[1] // ck.members
-        for u, k in zip(self.units, units.unit_members(self.layout, self.held)):
+        for u, k in zip(self.units, self.unit_held):
             nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
             u.x.assign(ck.x[:, nodes])
             prefix = None if self.layout == "shared" else f"member{k[0]}_"

@@ -149,8 +149,7 @@ class Members:
             raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
         if states.shape != shape:
             raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
-        pairs = enumerate(zip(self.units, self.unit_held))
-        going = [(u, k) for i, (u, k) in pairs if i not in self.out]
+        going = [(u, k) for i, (u, k) in enumerate(zip(self.units, self.unit_held)) if i not in self.out]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         initial.checked_states(states[kept], self.case, "states", kept)
         for u, k in going:
@@ -280,7 +279,6 @@ class Members:
 def member_starts(ck) -> tuple:
     """(states (N, 3, n), or the file's ``Variants``) an ensemble's checkpoint ``ck`` starts its
     members from, and its layout and blow-up policy, as ``Members`` takes them."""
-    n = ck.x.shape[1] // ck.members
     variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
-    start = ck.x.reshape(3, ck.members, n).transpose(1, 0, 2) if variants is None else initial.Variants(variants)
+    start = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else initial.Variants(variants)
     return start, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")

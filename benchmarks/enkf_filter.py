@@ -1,7 +1,7 @@
 """An ensemble Kalman filter beside 4D-Var (issue 85's example): the observations of
 ``fourdvar_points.py`` (h at ``--points`` points every ``--every`` hours over ``--hours`` of
 Galewsky's jet with its bump, σ = ``--sigma`` m) assimilated one time after the other by
-``--members`` N forecasts run together (``swe_sphere.Ensemble``), the state estimated at each
+``--members`` N forecasts run together (``swe_sphere.Simulation`` with ``members``), the state estimated at each
 observation time, where the smoother of ``enkf_points.py`` sought h(0) from all of them at once.
 
 The members start from the 4D-Var example's background (h_b + G z_k, z_k ~ N(0, I), B = G Gᵀ:
@@ -17,7 +17,7 @@ those among themselves, tapered by Gaspari & Cohn's (1999, QJRMS 125, 723, eq. 4
 of the chord distance (``--localization`` c km, zero beyond 2c: at one time the observations
 are local, which the smoother's were not), the prior anomalies first inflated by
 ``--inflation`` (multiplicative; Anderson & Anderson 1999, MWR 127, 2741); then the ensemble
-goes on from the analyses (``Ensemble.set_states``). Printed at each time: the l2 error of the
+goes on from the analyses (``Simulation.set_states``). Printed at each time: the l2 error of the
 ensemble mean's h against the truth at that time, relative to the first guess run forward
 (the balanced jet without a bump: 1 at every time), and the spread of h. With
 ``--fourdvar`` K, 4D-Var's analysis (``fourdvar_points.recover``, K L-BFGS iterations, the same
@@ -38,7 +38,7 @@ from enkf_points import ensemble_arguments, gaspari_cohn, unit_xyz
 from fourdvar_points import background_root, observed_run, recover, setting
 from results import recorded
 
-from swe_sphere.ensemble import Ensemble
+from swe_sphere import Simulation
 
 
 def main(args: argparse.Namespace, figures: dict) -> None:
@@ -72,10 +72,10 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         f"{args.localization:g} km, inflation {args.inflation:g}"
     )
     clock = time.process_time()
-    ens = Ensemble(s.scene, N, starts, device=args.device)
+    ens = Simulation(s.scene, members=N, initial=starts, device=args.device, progress=False)
     rows = []
     for j in times:
-        ens.step(j - ens.step_count)
+        ens.run(None, until_step=j)
         states = ens.states()  # (N, 3, n) element-local
         X = states[:, :, first].reshape(N, 3 * nu).T  # (3 nu, N): u, v, h at the unique nodes
         mean = X.mean(axis=1, keepdims=True)

@@ -7,7 +7,7 @@ The method: ES-MDA, the ensemble smoother with multiple data assimilation (Emeri
 2013, Computers & Geosciences 55, 3, eqs. 5–8). ``--members`` N initial heights drawn from the
 4D-Var example's background, h0_k = h_b + G z_k with z_k ~ N(0, I) (B = G Gᵀ: ``--length``,
 ``--sigma-b``, ``--h-scale`` as there), are run together over the window
-(``swe_sphere.Ensemble``: N members in the same launches), their heights read at the points
+(``swe_sphere.Simulation`` with ``members``: N members in the same launches), their heights read at the points
 (the example's ``PointHeights``); then every h0_k is updated at once with all the observations,
 
     h0_k ← h0_k + C_xy (C_yy + α R)⁻¹ (y + √α σ ε_k − H(h_k)),   R = σ² I,  ε_k ~ N(0, I),
@@ -32,7 +32,7 @@ import numpy as np
 from fourdvar_points import background_root, setting  # noqa: E402  (benchmarks/, the script's directory)
 from results import positive, recorded
 
-from swe_sphere.ensemble import Ensemble
+from swe_sphere import Simulation
 
 
 def gaspari_cohn(d: np.ndarray, c: float) -> np.ndarray:
@@ -58,10 +58,10 @@ def forecast(s, h0: np.ndarray, guess: np.ndarray, device: str = "cpu") -> np.nd
     grid, H, steps = s.grid, s.cost.operator, sorted(s.cost.values)
     states = np.repeat(guess[None], h0.shape[1], axis=0)
     states[:, 2] = h0.T[:, grid.gid]
-    ens = Ensemble(s.scene, h0.shape[1], states, device=device)
+    ens = Simulation(s.scene, members=h0.shape[1], initial=states, device=device, progress=False)
     predicted = []
     for k in steps:
-        ens.step(k - ens.step_count)
+        ens.run(None, until_step=k)
         predicted.append(np.stack([H(h) for h in ens.states()[:, 2]], axis=1))
     return np.concatenate(predicted)
 

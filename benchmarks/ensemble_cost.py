@@ -1,10 +1,10 @@
-"""N members of one scene (``swe_sphere.ensemble.Ensemble``) against one member, CPU clock
+"""N members of one scene (``swe_sphere.Simulation`` with ``members``) against one member, CPU clock
 (issue 85's target: on one CPU thread, 8 members of `galewsky` ≤ 7× one member's run); with
 ``--device cuda`` the wall clock, the device synchronised (the target: 32 members on an H100 ≤ 4×
 one).
 
 Builds an ensemble of one member, ``--members`` N (seeded 1 m perturbations of h) in each layout
-(``Ensemble.layout``: "shared", the same launches; "in_turn", a model a member, a block of steps
+(``Simulation``'s ``layout``: "shared", the same launches; "in_turn", a model a member, a block of steps
 each) and N ensembles of one member stepped in turn (what N runs in one process cost), times
 their build (CPU s, compile included for the first) and their steps in ``--rounds`` interleaved
 rounds of ``--steps`` steps (medians, CPU ms a step), and prints each against one member, a step
@@ -24,8 +24,9 @@ import time
 import warp as wp
 from results import positive, recorded
 
+from swe_sphere import Simulation
 from swe_sphere.core.runtime import init_warp
-from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.members.initial import Perturbation
 
 
 def clock(device: str) -> float:
@@ -60,18 +61,25 @@ def main(args: argparse.Namespace, figures: dict) -> None:
     for name, sizes in kinds.items():
         t = clock(args.device)
         runs[name] = [
-            Ensemble(args.scene, m, Perturbation(1.0, seed=k), device=args.device, layout=layout)
+            Simulation(
+                args.scene,
+                members=m,
+                initial=Perturbation(1.0, seed=k),
+                device=args.device,
+                layout=layout,
+                progress=False,
+            )
             for k, (m, layout) in enumerate(sizes)
         ]
         for ens in runs[name]:
-            ens.step(1)  # recorded: the rounds replay
+            ens.run(None, until_step=ens.step + 1)  # recorded: the rounds replay
         build[name] = clock(args.device) - t
     times: dict = {name: [] for name in runs}
     for _ in range(args.rounds):
         for name, ensembles in runs.items():
             t = clock(args.device)
             for ens in ensembles:
-                ens.step(args.steps)
+                ens.run(None, until_step=ens.step + args.steps)
             times[name].append((clock(args.device) - t) / args.steps)
     load = os.getloadavg()
     one = runs["1 member"][0]
@@ -79,7 +87,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
     ms = {name: 1e3 * statistics.median(times[name]) for name in runs}
     whole = {name: build[name] + nsteps * ms[name] / 1e3 for name in runs}
     print(
-        f"{args.scene} ne{one.grid.ne} np{one.grid.np} {one.scene.stepper} dt {one.dt:.4g} s, {one.grid.nnodes} nodes a "
+        f"{args.scene} ne{one.grid.ne} np{one.grid.np} {one.scene.stepper} dt {one.scene.dt:.4g} s, {one.grid.nnodes} nodes a "
         f"member, {os.environ.get('SWE_SPHERE_THREADS', 'all')} thread(s), {'CPU' if args.device == 'cpu' else 'wall'} clock, median of {args.rounds} "
         f"interleaved rounds of {args.steps} steps"
     )

@@ -1,7 +1,7 @@
 """How a Galewsky ensemble's spread grows from a few metres of noise (issue 85's example): N
 members of the ``galewsky`` scene (its grid, stepper and Δt), each from the case's jet and bump
 with h + ``--amplitude`` m of seeded white noise (``swe_sphere.Perturbation``), run to day
-``--days`` in the same launches (``swe_sphere.Ensemble.run``), its run file written every
+``--days`` in the same launches (``swe_sphere.Simulation.run`` with ``members``), its run file written every
 ``--every`` days; then the figure: the spread's area-weighted RMS ``h_spread_rms`` against time
 (log scale), and at the last day the ensemble mean of h and its spread (the members' standard
 deviation) filled over the unique nodes of the northern hemisphere. Prints the RMS spread at each
@@ -22,8 +22,9 @@ import netCDF4
 import numpy as np
 from results import recorded
 
+from swe_sphere import Simulation
 from swe_sphere.core.runtime import init_warp
-from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.members.initial import Perturbation
 
 
 def figure(path: Path, run: Path, title: str) -> None:
@@ -58,7 +59,8 @@ def main(args: argparse.Namespace, figures: dict) -> None:
     init_warp()
     every = {"output.every_days": args.every}
     t0 = time.perf_counter()
-    ens = Ensemble("galewsky", args.members, Perturbation(args.amplitude, seed=args.seed), days=args.days, **every)
+    start = Perturbation(args.amplitude, seed=args.seed)
+    ens = Simulation("galewsky", members=args.members, initial=start, days=args.days, progress=False, **every)
     ens.run(args.output, overwrite=True)
     wall = time.perf_counter() - t0
     with netCDF4.Dataset(args.output) as ds:

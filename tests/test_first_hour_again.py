@@ -60,10 +60,11 @@ def _never_listed(*args, **kwargs):
 def test_an_interval_of_too_many_times_is_refused_before_set_up(capsys, monkeypatch, options, words):
     """`run tc2_steady --ne 4 --days 0.1 -s output.every_days=1e-9` was still in set-up after
     300 s; the count is checked in O(1) before any schedule is listed or anything printed."""
+    import swe_sphere.simulation.schedules as schedules
     import swe_sphere.simulation.writers as writers
 
-    for name in ("output_steps", "output_days", "interval_days", "restart_steps"):
-        monkeypatch.setattr(writers, name, _never_listed)
+    for module, name in ((writers, "output_steps"), (writers, "output_days"), (schedules, "interval_days")):
+        monkeypatch.setattr(module, name, _never_listed)  # the restart days: ``schedules.restart_marks``'
     args = ["run", "tc2_steady", "--ne", "2", "--days", "0.1", *options, "--device", "cpu", "--output", "g66.nc"]
     code, out, err = cli_main(capsys, *args)
     one_line(code, err, 2, *words)

@@ -124,7 +124,7 @@ def command(args) -> int:
     from ..core.graphs import default_mode, graphs_mode
     from ..io.output_files import check_distinct, check_target
     from ..io.run_file import close_open_runs
-    from ..simulation.schedules import check_restart_interval
+    from ..simulation.schedules import restart_marks
     from ..simulation.writers import restart_path
 
     scene, members, output = _new_run(args) if args.continue_from is None else _continuation(args)
@@ -137,7 +137,7 @@ def command(args) -> int:
         if not is_interval(args.restart_every):
             raise SceneError(f"--restart-every must be a number of days > 0 (got {args.restart_every!r})")
         if scene is not None:  # a continuation's: in _run
-            check_restart_interval(scene, args.restart_every)
+            restart_marks(scene, args.restart_every)  # its refusals before set-up
     params = scene.case_params if scene is not None else {}
     initial = params.get("path", params.get("initial_file"))  # a file case's initial state: an input too
     if args.continue_from is not None and restart_path(output).resolve() == args.continue_from.resolve():
@@ -394,7 +394,7 @@ def _run(args, scene, members, output, device, comm) -> int:
     from ..core.workers import cpus, limit_threads
     from ..io.output_files import check_target
     from ..members.initial import MembersAlike
-    from ..simulation.schedules import check_restart_interval
+    from ..simulation.schedules import restart_marks
     from ..simulation.simulation import Simulation
     from ..simulation.writers import restart_path
 
@@ -412,7 +412,7 @@ def _run(args, scene, members, output, device, comm) -> int:
     if args.continue_from is not None:  # a continuation keeps its checkpoint's restart interval
         args.restart_every = sim.restart_every if args.restart_every is None else args.restart_every
         if args.restart_every is not None:  # a new run's: in ``command``
-            check_restart_interval(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
+            restart_marks(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
             check_target(restart_path(output), args.overwrite)  # where the interval is the checkpoint's own
     since, start = sim.time, sim.invariants() if members else None  # collective: the members' drift
     if members:

@@ -82,11 +82,10 @@ def own_units(scenes, cases, grid: CubedSphere, starts, backend, threads: int, o
     units, radius = [], None
     for scene, case, start in zip(scenes, cases, starts):
         model = ShallowWater.from_scene(scene, grid, case, **options, topology=topology)
-        if model.hv is not None and model.hv.nu_max > 0:
-            if radius is None:
-                radius = model.hv.biharmonic_radius()
-            else:
+        if model.hv is not None and model.hv.nu_max > 0:  # the first one's, then handed on
+            if radius is not None:
                 model.hv.use_biharmonic_radius(radius)
+            radius = model.hv.biharmonic_radius()
         units.append(Unit.of(model, scene_stepper(scene, model), start[None], backend, graphs))
     return units, None, units[0].model
 

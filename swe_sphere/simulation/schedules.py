@@ -33,21 +33,17 @@ def output_days(scene: Scene, every_days: float) -> set[float]:
     return interval_days(scene, every_days) | {float(scene.start_day)}
 
 
-def restart_steps(scene: Scene, every_days: float) -> set[int]:
-    """Steps at which a run with ``--restart-every every_days`` writes its restart
-    file (and the last step). Raises ``SceneError`` unless dt divides the interval (its count
-    checked first by the callers, ``check_restart_interval`` and the checkpointer)."""
+def restart_marks(scene: Scene, every_days: float) -> set:
+    """The steps at which a run with ``--restart-every every_days`` writes its restart file (and
+    the last step); under step control (``Scene.control``) their days (``interval_days``). Refuses
+    (``SceneError``) an interval of more than ``clock.MAX_TIMES`` restart files, before any is
+    listed, or, under a fixed Δt, not whole steps (under step control any interval lands): the
+    checkpointer's, and the command line's check before a run."""
+    scene.clock.check_times("the restart interval", every_days)
+    if scene.control is not None:
+        return interval_days(scene, every_days)
     per = scene.clock.steps(every_days, "the restart interval")  # ``SceneError`` unless dt divides it
     return set(range(per, scene.nsteps + 1, per)) | {scene.nsteps}
-
-
-def check_restart_interval(scene: Scene, every_days: float) -> None:
-    """Refuse (``SceneError``) a restart interval before a run: more than ``clock.MAX_TIMES``
-    restart files, or, under a fixed Δt, not whole steps (``restart_steps``; under step control
-    any interval lands)."""
-    scene.clock.check_times("the restart interval", every_days)
-    if scene.control is None:
-        restart_steps(scene, every_days)
 
 
 def at_its_end(caller: str, step: int, scene: Scene) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -9,7 +10,7 @@ from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import at_marks, interval_days, output_days, output_steps, restart_steps
+from .schedules import at_marks, output_days, output_steps, restart_marks
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -124,19 +125,14 @@ class RunFiles:
             raise
 
     def _each(self, verb: str, **kw) -> None:
-        """``RunWriter.<verb>(**kw)`` of every file rank 0 holds."""
+        """``RunWriter.<verb>(**kw)`` of every file rank 0 holds: ``set_attrs``, ``close``, and
+        ``abort`` (drop the files: a failed run)."""
         for w in self.writers:
             getattr(w, verb)(**kw)
 
-    def set_attrs(self, **attrs) -> None:
-        self._each("set_attrs", **attrs)
-
-    def close(self) -> None:
-        self._each("close")
-
-    def abort(self) -> None:
-        """Drop the files (a failed run)."""
-        self._each("abort")
+    set_attrs = functools.partialmethod(_each, "set_attrs")
+    close = functools.partialmethod(_each, "close")
+    abort = functools.partialmethod(_each, "abort")
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
         """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
@@ -196,10 +192,8 @@ class Checkpointer:
             if every_days is None and not overwrite and bcast(root and path.exists()):
                 path, self.kept = None, path
         self.path = path
-        self.steps = set()  # steps, or under step control days (``schedules.interval_days``)
-        if every_days is not None:
-            run.scene.clock.check_times("the restart interval", every_days)  # before the times are listed
-            self.steps = (restart_steps if run.control is None else interval_days)(run.scene, every_days)
+        # steps, or under step control days (``schedules.restart_marks``)
+        self.steps = set() if every_days is None else restart_marks(run.scene, every_days)
         self.schedule = at_marks(self.steps, run.control is not None)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")

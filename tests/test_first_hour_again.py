@@ -63,8 +63,8 @@ def test_an_interval_of_too_many_times_is_refused_before_set_up(capsys, monkeypa
     import swe_sphere.simulation.schedules as schedules
     import swe_sphere.simulation.writers as writers
 
-    for module, name in ((writers, "output_steps"), (writers, "output_days"), (schedules, "interval_days")):
-        monkeypatch.setattr(module, name, _never_listed)  # the restart days: ``schedules.restart_marks``'
+    monkeypatch.setattr(writers, "output_marks", _never_listed)
+    monkeypatch.setattr(schedules, "interval_days", _never_listed)  # the restart days: ``schedules.restart_marks``'
     args = ["run", "tc2_steady", "--ne", "2", "--days", "0.1", *options, "--device", "cpu", "--output", "g66.nc"]
     code, out, err = cli_main(capsys, *args)
     one_line(code, err, 2, *words)

@@ -106,7 +106,7 @@ class Clock:
 
     def times_in(self, every: float) -> int:
         """How many intervals of ``every`` days (> 0) end within the run (its length; a hair
-        short counts): the outputs after step 0 (``schedules.output_steps``), ``check_times``'."""
+        short counts): the outputs after step 0 (``schedules.output_marks``), ``check_times``'."""
         return math.floor(self.length / every + 1e-9)
 
     def is_whole(self, days) -> bool:

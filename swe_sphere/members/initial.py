@@ -158,16 +158,18 @@ class Variants:
         """Whether the members need a model each (their g or ν differ: values the kernels take once)."""
         return any(key in MODEL_KEYS for key in self.values)
 
-    def scenes(self, scene, members: int) -> list:
-        """The members' scenes (``Scene``s, one a member). ``ArgumentError`` for a count of
+    def scenes(self, scene, members: int) -> tuple[list, list]:
+        """The members' scenes (``Scene``s, one a member) and their cases (each scene's
+        ``make_case``, made once: it checks the values). ``ArgumentError`` for a count of
         values other than ``members`` or a value the scene's case refuses."""
         for key, values in self.values.items():
             if np.ndim(values) != 1 or len(values) != members:
                 raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
-        return [self._scene(scene, k) for k in range(members)]
+        scenes, cases = zip(*(self._scene(scene, k) for k in range(members)))
+        return list(scenes), list(cases)
 
-    def _scene(self, scene, k: int):
-        """Member k's scene (``scenes``): ``scene`` with each key at its k-th value, checked."""
+    def _scene(self, scene, k: int) -> tuple:
+        """Member k's scene (``scenes``), ``scene`` with each key at its k-th value, and its case."""
         value = {key: float(v[k]) if not key.startswith("case.") else v[k] for key, v in self.values.items()}
         params = {key[5:]: v for key, v in value.items() if key.startswith("case.")}
         planet = {**scene.planet, **{key[7:]: v for key, v in value.items() if key.startswith("planet.")}}
@@ -180,10 +182,9 @@ class Variants:
                 raise ArgumentError(f"variants: member {k}: {key} must be {bound} (got {value[key]!r})")
         member = dataclasses.replace(scene, case_params={**scene.case_params, **params}, planet=planet, **nus)
         try:
-            member.make_case()
+            return member, member.make_case()
         except (ValueError, TypeError) as err:
             raise ArgumentError(f"variants: member {k}: {err}") from None
-        return member
 
     def describe(self) -> str:
         """The values, as a run file's ``initial_states`` says them."""

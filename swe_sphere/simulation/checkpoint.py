@@ -17,15 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config.resolve import refuse_precision
+from ..config.resolve import refuse_precision, resolve_stepper_days
 from ..config.resolved import run_end
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
 from ..config.step_rule import Times, scene_dt
 from ..core.arguments import path_argument
-from ..core.errors import CheckpointError, SceneError
+from ..core.errors import CheckpointError
 from ..core.mpi import from_root
 from ..io import restart_file
-from ..steppers import STEPPERS
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
 
@@ -66,9 +65,7 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
     checkpoint's precision (``refuse_precision``), a dt <= 0, or a run from the branch day to
     ``days`` or an output interval that is not whole steps of dt."""
     s = ck.scene
-    stepper = s.stepper if stepper is None else stepper
-    if stepper not in STEPPERS:
-        raise SceneError(f"unknown stepper {stepper!r} (known: {', '.join(STEPPERS)})")
+    stepper = resolve_stepper_days({"stepper": s.stepper}, stepper)[0]  # the checkpoint's, or another known one
     refuse_precision(s.precision, stepper)
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}
     record |= {"day": ck.day, "stepper": s.stepper, "dt": s.dt}

@@ -67,8 +67,8 @@ class Members:
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
-        scenes = start.scenes(scene, members) if isinstance(start, initial.Variants) else [scene] * members
-        self.cases = [s.make_case() for s in scenes] if isinstance(start, initial.Variants) else None
+        variants = isinstance(start, initial.Variants)
+        scenes, self.cases = start.scenes(scene, members) if variants else ([scene] * members, None)
         # the variants' values, as a restart file keeps them (JSON)
         self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in start.values.items()}
         starts = initial.initial_states(start, grid, case, members, self.cases)

@@ -11,9 +11,12 @@ from fractions import Fraction
 from ..config.scene import Scene
 
 
-def output_steps(scene: Scene, every_days: float) -> set[int]:
+def output_marks(scene: Scene, every_days: float) -> set:
     """Steps with an output: every output interval (the scene's ``output.every_days``, or a
-    stream's) from step 0 (t = 0, or a branch's day), and the last."""
+    stream's) from step 0 (t = 0, or a branch's day), and the last; under step control
+    (``Scene.control``) their days (``interval_days``), the start's and the end's."""
+    if scene.control is not None:
+        return interval_days(scene, every_days) | {float(scene.start_day)}
     clock = scene.clock
     steps = {min(clock.nsteps, clock.steps_in(k * every_days)) for k in range(clock.times_in(every_days) + 1)}
     return steps | {clock.nsteps}
@@ -26,11 +29,6 @@ def interval_days(scene: Scene, every_days: float) -> set[float]:
     start, end, every = (Fraction(repr(float(d))) for d in (scene.start_day, scene.days, every_days))
     n = math.floor((end - start) / every)
     return {float(start + k * every) for k in range(1, n + 1)} | {float(end)}
-
-
-def output_days(scene: Scene, every_days: float) -> set[float]:
-    """``output_steps`` under step control: the output days, the start's and the end's."""
-    return interval_days(scene, every_days) | {float(scene.start_day)}
 
 
 def restart_marks(scene: Scene, every_days: float) -> set:

@@ -10,7 +10,7 @@ from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import at_marks, output_days, output_steps, restart_marks
+from .schedules import at_marks, output_marks, restart_marks
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -25,7 +25,7 @@ def restart_path(output: Path) -> Path:
 
 
 def _holds(run, marks: set, step: int) -> bool:
-    """Whether ``marks`` (steps; under step control days, ``output_days``) hold ``step``, the
+    """Whether ``marks`` (steps; under step control days, ``output_marks``) hold ``step``, the
     current one under step control (``run_state.RunState.event_day``)."""
     return step in marks if run.control is None else run.event_day in marks
 
@@ -92,12 +92,11 @@ class RunFiles:
         self.grid, self.hs, self.series = grid, hs, list(series)
         # the run files (None: none), each (path, fields, marks): the run file itself with the scene's
         # ``output.fields``, then each ``[[output.streams]]`` with its own, each at its own output steps
-        # (``schedules.output_steps``; under step control its days, ``output_days``)
-        marks = output_days if controlled else output_steps
-        main = marks(s, s.output_every_days)  # the run file's times (without one, the diagnostics')
+        # (``schedules.output_marks``; under step control its days)
+        main = output_marks(s, s.output_every_days)  # the run file's times (without one, the diagnostics')
         self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, main)]
         for st in s.output_streams if output is not None else ():
-            self.streams.append((stream_path(output, st["name"]), st["fields"], marks(s, st["every_days"])))
+            self.streams.append((stream_path(output, st["name"]), st["fields"], output_marks(s, st["every_days"])))
         self.steps = main.union(*(steps for _, _, steps in self.streams))
         self.schedule = at_marks(self.steps, controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)

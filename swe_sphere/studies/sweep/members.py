@@ -60,7 +60,7 @@ class Members:
         with ``Variants`` each at member k's values (``ArgumentError`` as ``Variants.scenes``)."""
         if not isinstance(self.initial, Variants):
             return [scenes] * self.count
-        each = {name: self.initial.scenes(scene, self.count) for name, scene in scenes.items()}
+        each = {name: self.initial.scenes(scene, self.count)[0] for name, scene in scenes.items()}
         return [{name: each[name][k] for name in scenes} for k in range(self.count)]
 
     def starts(self, scenes: dict) -> np.ndarray:
@@ -74,7 +74,7 @@ class Members:
         case = scene.make_case()
         grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         variants = isinstance(self.initial, Variants)  # their cases start them
-        cases = [s.make_case() for s in self.initial.scenes(scene, self.count)] if variants else None
+        cases = self.initial.scenes(scene, self.count)[1] if variants else None
         return initial_states(self.initial, grid, case, self.count, cases)
 
     def key(self, k: int, start: np.ndarray) -> dict:

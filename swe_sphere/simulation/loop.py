@@ -93,49 +93,52 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     return stop
 
 
-def integrate(run, files, ckp, start, signals, blocks, during, *, progress, **how) -> Stop:
+def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, *, progress, lines, compiling) -> Stop:
     """The run wrapper of ``Simulation.run``: ``run`` (a
     ``run_state.RunState``) stepped by ``blocks(signals, bar)`` (``run_steps``; a ``Stop``) with
     its files (``writers.RunFiles``, ``Checkpointer``) under ``signals`` (a ``StopSignals``), one
-    BLAS thread, ``during`` (a context: the run's own activities) and a progress bar (and
-    ``how["lines"]``, a ``progress.ProgressLines``). The first output time recorded first
-    (``start`` its gathered fields, ``how["diagnosed"]`` their diagnostics where taken), a
-    continuation's not written again: the two files join without a repeat. A blow-up's line the
-    files' attribute ``how["why"]`` (default "blowup"), the last good state recorded where the run
-    has one (``how["last_good"]()``); a signal's step recorded, its attributes (``interrupted``, its
-    name, ``interrupted_at_step`` and ``interrupted_at_day``) and its restart file. The files closed with ``how["closing"]()``'s attributes; on an exception
-    dropped, or closed with ``how["kept"](err)``'s (an ensemble's). Returns why the steps
-    stopped, a signal after the last step's check taken as one (the output is whole)."""
-    step, stop, lines, last = run.step, Stop(), how.get("lines"), how.get("last_good")
+    BLAS thread, ``during`` (a context: the run's own activities), a progress bar and ``lines``
+    (a ``progress.ProgressLines`` or None), the seconds compiling added to ``compiling[0]``. The
+    first output time recorded first (``start`` its gathered fields, ``diagnosed`` their diagnostics
+    where taken), a continuation's not written again: the two files join without a repeat. ``ends``
+    the run's diagnostics (``state_diagnostics.StateDiagnostics`` or ``members.Members``): where
+    they have a ``last_good()`` state (a single run's) a blow-up's line is the files' attribute
+    ``blowup`` and that state recorded, and on an exception the files are dropped; where not (a
+    run of members') the files keep the line, or the exception's, as ``stopped``. A signal's step
+    recorded, its attributes (``interrupted``, its name, ``interrupted_at_step`` and
+    ``interrupted_at_day``) and its restart file. The files closed with the members dropped
+    (``ends.drops``, as ``dropped_members``). Returns why the steps stopped, a signal after the last
+    step's check taken as one (the output is whole)."""
+    step, stop = run.step, Stop()
     # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
     # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
     with signals, threadpool_limits(limits=1, user_api="blas"):
         try:
-            with during, compile_timer(how.get("compiling", [0.0])):
-                files.record(step, whole=start, final=True, write=not step, diagnosed=how.get("diagnosed"))
+            with during, compile_timer(compiling):
+                files.record(step, whole=start, final=True, write=not step, diagnosed=diagnosed)
                 if lines is not None:
                     lines.start(run.time, run.scene.days)
                 # a bar on a terminal only (disable=None), not redrawn into a log or mpiexec's pipe
                 on = {"disable": None if progress else True, "file": sys.stderr, "dynamic_ncols": True}
                 with tqdm(initial=step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(signals, bar)
-                why = {how.get("why", "blowup"): stop.blowup}
-                if stop.blowup is not None and last is not None:  # ``step`` is the last good step again
-                    files.end(run.step, last(), **why)
+                if stop.blowup is not None and ends.last_good is not None:  # ``step`` is the last good step again
+                    files.end(run.step, ends.last_good(), blowup=stop.blowup)
                 elif stop.blowup is not None:
-                    files.set_attrs(**why)
+                    files.set_attrs(stopped=stop.blowup)
                 elif stop.signum is not None:
                     # the global attributes of a run file stopped by a signal: its name, the step and model day
                     name = signal.Signals(stop.signum).name
                     files.end(run.step, interrupted=name, interrupted_at_step=run.step, interrupted_at_day=run.time)
                     ckp.interrupted(run.step, abandoned=stop.abandoned is not None)
-                files.set_attrs(**how.get("closing", dict)())
+                drops = ends.drops  # collective
+                files.set_attrs(**({"dropped_members": "; ".join(drops)} if drops else {}))
             files.close()  # under this run's handlers: a signal now waits, and is answered below
         except BaseException as err:
-            if how.get("kept") is None:
+            if ends.last_good is not None:
                 files.abort()
             else:
-                files.set_attrs(**how["kept"](err))
+                files.set_attrs(stopped=str(err) or type(err).__name__)
                 files.close()
             raise
     if stop.signum is None and stop.blowup is None:  # a signal after the last step's check: the output is whole

@@ -15,7 +15,7 @@ from threadpoolctl import threadpool_limits
 
 from ..cases.scoring import Scorer
 from ..core.arguments import got, integer_argument
-from ..core.errors import ArgumentError
+from ..core.errors import ArgumentError, StepFailure
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import area_rms, member_statistics
@@ -25,6 +25,7 @@ from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from .build import check_memory
 from .state_diagnostics import WholeFields
+from .writers import scene_attrs
 
 
 @dataclass
@@ -43,7 +44,13 @@ class Members:
     ``units.POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Attributes as
     ``Simulation``'s doc lists them for members (``grid``, ``copies``, ``units``, ``alike``, …);
     ``unit_held`` each unit's members (their indices), in order;
-    ``out`` the units dropped ({unit index: step}, the integrator's, set by the driver)."""
+    ``out`` the units dropped ({unit index: step}, the integrator's, set by the driver); ``run`` the
+    run's ``run_state.RunState`` (set by the driver). What the driver asks of a run, as of a single
+    run's ``StateDiagnostics``: ``states``, ``restart_parts``, ``describe``, ``opening``, ``dropped``,
+    ``drops``, ``bcast``, ``ranks`` (``last_good`` None: a blow-up's files keep no state)."""
+
+    series = ("steps", "wall_time")  # the run file's per-time series; each member's are ``member_series``
+    last_good = None
 
     def __init__(self, scene, members, start, backend, comm, graphs, layout, blow_up, **options):
         asked = scene.ensemble  # the scene's [ensemble] table, or None
@@ -204,10 +211,16 @@ class Members:
         return area_rms(self.grid, member_statistics(self.grid.to_unique(self.states()[:, 2]))[1])
 
     # -- blow-ups and dropped members -----------------------------------------------------
-    def blow_up_line(self, step: int, day: float) -> str:
-        """The one line of a blow-up at ``step`` (model ``day``): the members bad there (the model's
-        bad-node rule, ``BadNodes.mask``) but those dropped, the first one's place (collective)."""
-        bad = self.units[0].model.bad_nodes.mask(self.states())
+    def describe(self, bad: tuple) -> str:
+        """The one line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
+        ``integrator.core.Stop``, a blow-up: the members bad there (their states those of that step;
+        the model's bad-node rule, ``BadNodes.mask``) but those dropped, the first one's place
+        (collective); ``StepFailure`` for a failed solve."""
+        step, trouble, detail = bad
+        if trouble == "failure":
+            raise StepFailure(detail)
+        self.run.core.step = step
+        day, bad = self.run.time, self.units[0].model.bad_nodes.mask(self.states())
         dropped = self.dropped
         members = [int(k) for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped]
         where, last = self.place(np.argmax(bad[members[0]])), "; none left" if self.blow_up == "drop" else ""
@@ -217,9 +230,10 @@ class Members:
             f"every member stopped (policy: {units.POLICIES[self.blow_up]}{last})"
         )
 
-    def drop(self, bad: list, step: int, day: float) -> None:
-        """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` (model ``day``): their lines."""
+    def drop(self, step: int, bad: list) -> None:
+        """Record the (index, unit, first bad node) ``bad`` dropped at ``step`` (a fixed Δt's): their lines."""
         for i, _, node in bad:
+            day = self.run.scene.day(step)
             self.lines.append(
                 f"member {self.held[i]} of {self.members} blew up at step {step} (model time {day:.4f} days; first "
                 f"at {self.place(node)}): dropped, the others go on (policy: {units.POLICIES['drop']})"
@@ -266,14 +280,25 @@ class Members:
         self.out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
         self.initial_states = ck.initial.get("initial_states", self.initial_states)
 
-    def attrs(self) -> dict:
-        """The run file's global attributes of the members."""
-        return {
+    def opening(self, files, start: MemberFields, history: str | None, name: str, dfi=None, device=None) -> tuple:
+        """(no Courant numbers, the members' first diagnostics from ``start``, the run file's global
+        attributes (``name`` the run's, ``scene_attrs``), what else ``RunFiles.open`` takes (``members``,
+        ``member_series``)) of the run's files ``files``, their ``member_series`` (time, member) set;
+        ``dfi`` and ``device`` a single run's (unread)."""
+        run = self.run
+        first = self.diagnose(run.seconds(run.step), whole=start)
+        files.member_series = tuple(first)
+        attrs = {
+            **scene_attrs(run.scene, "ensemble", history, name),
+            **run.stepper.attrs(),
+            "device": str(self.units[0].model.topology.device),
             "ensemble_layout": self.layout,
             "members": self.members,
             "initial_states": self.initial_states,
             "blow_up_policy": units.POLICIES[self.blow_up],
+            **({"continued_from_day": run.time} if run.step else {}),
         }
+        return {}, first, attrs, {"members": self.members, "member_series": files.member_series}
 
 
 def member_starts(ck) -> tuple:

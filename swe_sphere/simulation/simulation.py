@@ -30,11 +30,11 @@ from ..core.arguments import (
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.clock import is_interval
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError, StepFailure
+from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..integrator.control import StepControl
-from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded, trouble_line
+from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.units import member_step
 from . import checkpoint as ckpt
@@ -48,7 +48,7 @@ from .run_state import RunState
 from .schedules import EverySteps, at_its_end
 from .state_diagnostics import StateDiagnostics
 from .summary import Ledger, RunResult
-from .writers import Checkpointer, RunFiles, run_attrs, scene_attrs
+from .writers import Checkpointer, RunFiles
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
@@ -283,7 +283,7 @@ class Simulation:
                     f"blow_up 'stop'), not {where}"
                 )
             self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
-        self.run_state = RunState(self.core, scene)
+        m.run = self.run_state = RunState(self.core, scene)
 
     # -- restarts and branches (``checkpoint``)
     @classmethod
@@ -397,9 +397,7 @@ class Simulation:
     def states(self) -> np.ndarray:
         """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
         nodes (a dropped member's NaN), on every rank (collective)."""
-        if self.ensemble is not None:
-            return self.ensemble.states()
-        return self.topology.bcast(self.topology.gather(self.x.numpy()))[None]
+        return self.diagnostics.states()
 
     def set_states(self, states) -> None:
         """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
@@ -433,12 +431,12 @@ class Simulation:
     @property
     def dropped(self) -> dict[int, int]:
         """{member: the step it blew up at} of the members dropped (``blow_up`` "drop"; collective)."""
-        return {} if self.ensemble is None else self.ensemble.dropped
+        return self.diagnostics.dropped
 
     @property
     def drops(self) -> list[str]:
         """The one line of each member dropped, in the order they were (collective)."""
-        return [] if self.ensemble is None else self.ensemble.drops
+        return self.diagnostics.drops
 
     def _members_only(self, what: str) -> Members:
         """The members' part; ``ArgumentError`` for a run made without ``members``."""
@@ -533,18 +531,11 @@ class Simulation:
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.core.step, notify if self.root else None)
-        ranks = self.topology if self.ensemble is None else self.ensemble.ranks
-        signals = StopSignals(ranks, catch_signals)
+        signals = StopSignals(self.diagnostics.ranks, catch_signals)
         blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step, progress_lines, until_day)  # noqa: E731
-        kw = {"lines": progress_lines, "compiling": self._compile}
-        if self.ensemble is None:
-            kw["last_good"] = lambda: self.last_good
-        else:  # a blow-up or a failure closes the files with why; the members dropped said
-            drops = lambda: {"dropped_members": "; ".join(self.drops)} if self.drops else {}  # noqa: E731
-            why = lambda err: {"stopped": str(err) or type(err).__name__}  # noqa: E731
-            kw.update(diagnosed=first, why="stopped", kept=why, closing=drops)
         during = self._during_run(files, ckp, log)
-        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, progress=self.progress, **kw)
+        how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}
+        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, self.diagnostics, first, **how)
         times = {"setup_time": self.setup_time, "compile_time": self._compile[0]}
         done = {"courant": courant, "output": output, "blowup": stop.blowup, "checkpoint": ckp.written, **times}
         result = ledger.result(self.core.step, files.history, **done)
@@ -770,11 +761,9 @@ class Simulation:
         ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
         state and its stepper's history, the member count, the layout and the variants."""
         kept = {"overwrite": overwrite, "restart_every": restart_every}
-        if self.ensemble is not None:  # (x, stepper states, initial, grid) on rank 0, else None
-            parts, kept["members"] = self.ensemble.restart_parts(), self.members
-        else:  # gathered and the stepper's state taken on every rank, written by rank 0
-            x, state = self.topology.gather(self.x.numpy()), self.stepper.state()
-            parts = (x, state, self.initial, self.grid) if self.root else None
+        if self.ensemble is not None:
+            kept["members"] = self.members
+        parts = self.diagnostics.restart_parts()  # (x, stepper states, initial, grid) on rank 0, else None
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
     # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities
@@ -789,52 +778,25 @@ class Simulation:
             raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
         stop_step = self.scene.nsteps if until_step is None else until_step
         lines = lines if self.root else None
-        drop = None if self.ensemble is None else lambda step, bad: self.ensemble.drop(bad, step, self.scene.day(step))
+        d = self.diagnostics  # members dropped where they blow up (``Members.drop``; None: one run), a bad step's line
         parts = (self.run_state, self.activities, self, ledger, self.check_every, signals, bar, lines)
-        observer = RunObserver(*parts, dropped=drop)
+        observer = RunObserver(*parts, dropped=d.drop)
         last_day = self.scene.days if until_day is None else until_day
-        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, self._describe)
-
-    def _describe(self, bad: tuple) -> str:
-        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
-        ``integrator.core.Stop``: a single run's (``trouble_line``), or the members bad there (their
-        states those of that step; ``StepFailure`` for a failed solve)."""
-        if self.ensemble is None:
-            day = self.time if self.control is not None else self.scene.day(bad[0])
-            return trouble_line(self.model, self.x, bad, day)
-        step, trouble, detail = bad
-        if trouble == "failure":
-            raise StepFailure(detail)
-        self.core.step = step
-        return self.ensemble.blow_up_line(step, self.time)
+        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, d.describe)
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),
         the start's gathered fields, its Courant numbers (a single run's) and its members'
         diagnostics (None for a single run). ValueError for a user's activity under a name the
         run gives its own."""
-        run, m = self.run_state, self.ensemble
-        bcast = self.topology.bcast if m is None else m.bcast
-        ckp = Checkpointer(run, self.write_checkpoint, bcast, self.root, output, restart_every, restart_file, overwrite)
-        series = None if m is None else ("steps", "wall_time")
-        files = RunFiles(run, self.diagnostics, self.grid, self.hs, output, on_output, series)
+        d, paths = self.diagnostics, (output, restart_every, restart_file, overwrite)
+        ckp = Checkpointer(self.run_state, self.write_checkpoint, d.bcast, self.root, *paths)
+        files = RunFiles(self.run_state, d, self.grid, self.hs, output, on_output, d.series)
         check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = self.diagnostics.gather_fields(divergence=files.divergence)  # the first output time's, every rank
-        if m is None:
-            courant, first, more = self.courant(start), None, {}
-            attrs = run_attrs(run, self.case, self.dfi, self.device, self.topology.comm.size, history, courant)
-        else:  # the members' invariants and errors, each (time, member) in the files
-            courant, first = {}, self.diagnostics.diagnose(run.seconds(self.core.step), whole=start)
-            files.member_series = tuple(first)
-            more = {"members": m.members, "member_series": files.member_series}
-            attrs = {
-                **scene_attrs(run.scene, "ensemble", history, f"swe_sphere.{type(self).__name__}.run"),
-                **self.stepper.attrs(),
-                "device": str(self.model.topology.device),
-                **m.attrs(),
-                **({"continued_from_day": self.time} if self.core.step else {}),
-            }
+            start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank
+        name = f"swe_sphere.{type(self).__name__}.run"
+        courant, first, attrs, more = d.opening(files, start, history, name, self.dfi, self.device)
         if output is not None and self.root:
             files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
         return files, ckp, start, courant, first

@@ -8,7 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..integrator.core import trouble_line
 from ..model.diagnostics import courant_numbers, invariants
+from .writers import run_attrs
 
 
 @dataclass
@@ -33,11 +35,46 @@ class StateDiagnostics:
     parts: ``model``, ``topology``, ``grid``, ``case``, ``scorer`` (the errors against the case's
     truth), ``hs`` and ``fcor`` (nnodes,) on rank 0, ``root`` (this rank is 0). Fields are
     gathered on rank 0, which diagnoses the whole grid (the same arithmetic on any number of
-    ranks) and broadcasts the figures."""
+    ranks) and broadcasts the figures. What the driver asks of a run, of one member or N
+    (``members.Members`` answers alike): its states, restart parts, a bad step's line, its run
+    file's attributes, its last good state, its members dropped and its ranks."""
+
+    series = drop = None  # the run file's per-time series: a run's (``writers.RunFiles``); no member dropped
+    dropped: dict = {}  # {member: step} dropped: none in a single run
+    drops: list = []  # their lines
 
     def __init__(self, run, model, topology, grid, case, scorer, hs, fcor, root: bool):
         self.run, self.model, self.topology, self.grid, self.case = run, model, topology, grid, case
         self.scorer, self.hs, self.fcor, self.root = scorer, hs, fcor, root
+        self.bcast, self.ranks = topology.bcast, topology  # rank 0's values on every rank; what signals ask
+
+    def states(self) -> np.ndarray:
+        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
+        nodes (a dropped member's NaN), on every rank (collective)."""
+        return self.topology.bcast(self.topology.gather(self.run.x.numpy()))[None]
+
+    def restart_parts(self) -> tuple | None:
+        """(x, stepper state, t = 0 diagnostics, grid) of a restart file, gathered and the stepper's
+        state taken on every rank (collective), on rank 0 (None on the others)."""
+        x, state = self.topology.gather(self.run.x.numpy()), self.run.stepper.state()
+        return (x, state, self.run.initial, self.grid) if self.root else None
+
+    def describe(self, bad: tuple) -> str:
+        """The line of a checked step gone bad, ``bad`` = (step, trouble, detail) of an
+        ``integrator.core.Stop`` (``trouble_line``)."""
+        day = self.run.time if self.run.control is not None else self.run.scene.day(bad[0])
+        return trouble_line(self.model, self.run.x, bad, day)
+
+    def last_good(self):
+        """The state (3, N) at the start of the step or block in progress (a blow-up's last good)."""
+        return self.run.core.units[0].start
+
+    def opening(self, files, start: WholeFields, history: str | None, name: str, dfi, device: str) -> tuple:
+        """(the Courant numbers of ``start``, the first diagnostics (None: the files take them), the
+        run file's attributes (``writers.run_attrs``; ``dfi`` its start, on ``device``), and what else
+        ``RunFiles.open`` takes (none)) of a run's files ``files`` (``name`` an ensemble's)."""
+        courant = self.courant(start)
+        return courant, None, run_attrs(self.run, self.case, dfi, device, self.topology.comm.size, history, courant), {}
 
     def fields(self, x=None):
         """u, v, h (nnodes,) of the whole grid, gathered on rank 0 (call on every rank;

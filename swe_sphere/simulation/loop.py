@@ -102,7 +102,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     first output time recorded first (``start`` its gathered fields, ``diagnosed`` their diagnostics
     where taken), a continuation's not written again: the two files join without a repeat. ``ends``
     the run's diagnostics (``state_diagnostics.StateDiagnostics`` or ``members.Members``): where
-    they have a ``last_good()`` state (a single run's) a blow-up's line is the files' attribute
+    they have a ``last_good`` state (a single run's) a blow-up's line is the files' attribute
     ``blowup`` and that state recorded, and on an exception the files are dropped; where not (a
     run of members') the files keep the line, or the exception's, as ``stopped``. A signal's step
     recorded, its attributes (``interrupted``, its name, ``interrupted_at_step`` and
@@ -123,7 +123,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
                 with tqdm(initial=step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(signals, bar)
                 if stop.blowup is not None and ends.last_good is not None:  # ``step`` is the last good step again
-                    files.end(run.step, ends.last_good(), blowup=stop.blowup)
+                    files.end(run.step, ends.last_good, blowup=stop.blowup)
                 elif stop.blowup is not None:
                     files.set_attrs(stopped=stop.blowup)
                 elif stop.signum is not None:

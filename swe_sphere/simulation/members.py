@@ -105,6 +105,8 @@ class Members:
         self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
         self.g = [u.model.g for u in self.units for _ in range(u.members)]
         self.scorer = None
+        # what ``StopSignals`` asks of the ranks: the one model's topology, or the members' ranks
+        self.ranks = self.units[0].model.topology if self.comm is None else RankMax(self.comm)
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
             warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
@@ -129,11 +131,6 @@ class Members:
     def bcast(self, value):
         """Rank 0's ``value`` on every rank (collective)."""
         return value if self.comm is None else self.comm.bcast(value, root=0)
-
-    @property
-    def ranks(self):
-        """What ``StopSignals`` asks of the ranks: the one model's topology, or the members' ranks."""
-        return self.units[0].model.topology if self.comm is None else RankMax(self.comm)
 
     # -- the states on (N, n) ------------------------------------------------------------
     def held_states(self) -> np.ndarray:
@@ -285,7 +282,7 @@ class Members:
         attributes (``name`` the run's, ``scene_attrs``), what else ``RunFiles.open`` takes (``members``,
         ``member_series``)) of the run's files ``files``, their ``member_series`` (time, member) set;
         ``dfi`` and ``device`` a single run's (unread)."""
-        run = self.run
+        run = self.run  # the run's step, scene and stepper now
         first = self.diagnose(run.seconds(run.step), whole=start)
         files.member_series = tuple(first)
         attrs = {

@@ -760,10 +760,8 @@ class Simulation:
         fields, gathered from every rank (call on all), written by rank 0;
         ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
         state and its stepper's history, the member count, the layout and the variants."""
-        kept = {"overwrite": overwrite, "restart_every": restart_every}
-        if self.ensemble is not None:
-            kept["members"] = self.members
-        parts = self.diagnostics.restart_parts()  # (x, stepper states, initial, grid) on rank 0, else None
+        d = self.diagnostics  # (x, stepper states, initial, grid) on rank 0, else None; an ensemble's member count
+        parts, kept = d.restart_parts(), {"overwrite": overwrite, "restart_every": restart_every, "members": d.members}
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
     # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..integrator.core import trouble_line
+from ..integrator.core import forwarded, trouble_line
 from ..model.diagnostics import courant_numbers, invariants
 from .writers import run_attrs
 
@@ -39,7 +39,8 @@ class StateDiagnostics:
     (``members.Members`` answers alike): its states, restart parts, a bad step's line, its run
     file's attributes, its last good state, its members dropped and its ranks."""
 
-    series = drop = None  # the run file's per-time series: a run's (``writers.RunFiles``); no member dropped
+    # the run file's per-time series a run's (``writers.RunFiles``); no member dropped nor counted (a restart file's)
+    series = drop = members = None
     dropped: dict = {}  # {member: step} dropped: none in a single run
     drops: list = []  # their lines
 
@@ -65,9 +66,7 @@ class StateDiagnostics:
         day = self.run.time if self.run.control is not None else self.run.scene.day(bad[0])
         return trouble_line(self.model, self.run.x, bad, day)
 
-    def last_good(self):
-        """The state (3, N) at the start of the step or block in progress (a blow-up's last good)."""
-        return self.run.core.units[0].start
+    last_good = forwarded("run.core.units.0.start", "The state (3, N) at the start of the step or block.", False)
 
     def opening(self, files, start: WholeFields, history: str | None, name: str, dfi, device: str) -> tuple:
         """(the Courant numbers of ``start``, the first diagnostics (None: the files take them), the

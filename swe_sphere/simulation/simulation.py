@@ -431,12 +431,12 @@ class Simulation:
     @property
     def dropped(self) -> dict[int, int]:
         """{member: the step it blew up at} of the members dropped (``blow_up`` "drop"; collective)."""
-        return self.diagnostics.dropped
+        return dict(self.diagnostics.dropped)  # a copy: a single run's is its diagnostics' class-wide {}
 
     @property
     def drops(self) -> list[str]:
         """The one line of each member dropped, in the order they were (collective)."""
-        return self.diagnostics.drops
+        return list(self.diagnostics.drops)
 
     def _members_only(self, what: str) -> Members:
         """The members' part; ``ArgumentError`` for a run made without ``members``."""

@@ -20,7 +20,7 @@ from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
 from ..core.mpi import from_root
-from ..integrator.core import FixedDt, Integrator, Observer, Rewind, Unit, trouble_line
+from ..integrator.core import FixedDt, Integrator, Observer, Unit, trouble_line
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -226,32 +226,26 @@ def gradient(
     return Gradient(total, mu, final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
-class _Reload(Rewind):
-    """A sweep's block put back by loading its start, the state ``x`` it advances (``load``): the
-    sweep holds it, so nothing is kept."""
+class _Sweep(Observer):
+    """A sweep's advance as one block (the integrator's observer and rewind), its states checked
+    where not yet (``verified``: the steps checked so far; a recomputation's are not checked
+    again), put back by loading its start, the state ``x`` it advances (``load``): the sweep
+    holds it, so nothing is kept."""
 
     def __init__(self, load):
-        self.load, self.x = load, None
-
-    def keep(self, active: list, whole: bool) -> dict:
-        return {}
-
-    def put_back(self, active: list, saved: dict, whole: bool) -> None:
-        self.load(self.x)
-
-
-class _Sweep(Observer):
-    """A sweep's advance as one block, its states checked where not yet (``verified[0]``: the
-    steps checked so far; a recomputation's are not checked again)."""
-
-    def __init__(self, verified: list):
-        self.verified = verified
+        self.load, self.x, self.verified = load, None, 0
 
     def block_end(self, b: int) -> int:
         return sys.maxsize  # the advance's end (``Integrator.advance``'s stop step)
 
     def checked(self, b: int, e: int) -> bool:
-        return e > self.verified[0]
+        return e > self.verified
+
+    def keep(self, active: list, whole: bool) -> dict:
+        return {}
+
+    def put_back(self, active: list, saved: dict) -> None:
+        self.load(self.x)
 
 
 def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval):
@@ -271,28 +265,27 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
         for a, held in pairs(x):
             wp.copy(a, held)
 
-    verified = [0]  # the steps whose states were checked: a recomputation's are not checked again
+    forward = _Sweep(load)  # its steps whose states were checked: a recomputation's are not checked again
 
     def step(unit, j, watch):  # x(j) to x(j + 1) in the stepper's arrays, watched where not yet checked
         stepper.step(work)
-        if watch and j >= verified[0]:
+        if watch and j >= forward.verified:
             model.bad_nodes.watch(work)
 
     # each step at the run's Δt and model time (``clock``), as ``FixedDt`` replays them
-    core = Integrator([Unit(model, stepper, work, work, None)], FixedDt(step, clock), lone=False, rewind=_Reload(load))
-    sweep_blocks = _Sweep(verified)
+    core = Integrator([Unit(model, stepper, work, work, None)], FixedDt(step, clock), lone=False, rewind=forward)
 
     def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once
         load(x)
-        core.step, core.rewind.x = k, x
-        stop = core.advance(k + m, sweep_blocks)
+        core.step, forward.x = k, x
+        stop = core.advance(k + m, forward)
         if stop.bad is not None:
             j, trouble, detail = stop.bad
             if trouble == "failure":
                 raise StepFailure(detail)
             t0, dt = clock(j - 1)
             raise BlowUp(trouble_line(model, work, stop.bad, (t0 + j * dt) / DAY, " of the gradient's run"))
-        verified[0] = max(verified[0], k + m)
+        forward.verified = max(forward.verified, k + m)
         for a, held in pairs(x):
             wp.copy(held, a)
 

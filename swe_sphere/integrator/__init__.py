@@ -1,6 +1,6 @@
 """The integrator layer: the package's one step loop (``core``: ``Integrator``, its ``Unit`` s,
 the guard, the Δt policies ``FixedDt`` and ``ControlledDt``, the observer hooks) and the step
-control it steps under a controlled Δt (``control``: ``StepControl`` and its tries, ``Tries``).
+control it steps under a controlled Δt (``control``: ``StepControl``).
 Every driver steps through it: a run of one member or many (``simulation.Simulation``) and the
 gradient's sweeps (``adjoint.gradient``).
 

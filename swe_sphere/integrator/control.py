@@ -47,7 +47,6 @@ from ..core.errors import BlowUp, SceneError
 from ..steppers import StepStats
 from ..steppers.capabilities import ErrorEstimates, TrialSteps
 from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
-from .core import Rewind
 
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
@@ -185,7 +184,7 @@ class StepControl:
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
         model.launches.limit, model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
-        self.x0 = unit.start  # a step's start: the guard's last good state (``Tries``)
+        self.x0 = unit.start  # a step's start: the guard's last good state (``core.ControlledDt.put_back``)
         # the next try launched before this one's norm is read: where the host's read would idle the card
         on_one_card = not topology.backend.host and not topology.distributed
         self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
@@ -383,21 +382,3 @@ class StepControl:
         if self.balance is not None:
             self.balance.restore(state["balance"])
         self._cap_seconds = 0.0  # the next step takes the Courant pass
-
-
-class Tries(Rewind):
-    """A controlled step kept and put back by the integrator's loop (``simulation.adaptive.steered``): the state of its
-    ``control`` (a ``StepControl``; the step's start is the control's own, its unit's ``start``)."""
-
-    def __init__(self, control: StepControl):
-        self.control, self.saved = control, None
-
-    def keep(self, active: list, whole: bool):
-        self.saved = self.control.state()
-        return {}
-
-    def put_back(self, active: list, saved: dict, whole: bool) -> None:
-        unit = self.control.unit
-        self.control.settle(unit.x)
-        wp.copy(unit.x, unit.start)
-        self.control.restore(self.saved)

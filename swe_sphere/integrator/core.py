@@ -206,10 +206,12 @@ class ControlledDt:
     rejected ones retried) toward the first of ``days`` (model days from t = 0, increasing) after
     the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
     step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``).
-    ``reached``: the last of ``days`` reached (a driver's blocks end there)."""
+    ``reached``: the last of ``days`` reached (a driver's blocks end there). It is also how the
+    loop keeps and puts back a controlled step (its ``Integrator.rewind``): the state of
+    ``control`` (the step's start is the control's own, its unit's ``start``)."""
 
     def __init__(self, control, days, quiet):
-        self.control, self.days, self.quiet = control, list(days), quiet
+        self.control, self.days, self.quiet, self.saved = control, list(days), quiet, None
 
     @property
     def reached(self) -> bool:
@@ -221,6 +223,17 @@ class ControlledDt:
         day = next(d for d in self.days if d * DAY > self.control.t)
         return counted(self.control.step_to(unit.x, day, self.quiet(j)), unit.stepper)
 
+    def keep(self, active: list, whole: bool) -> dict:
+        self.saved = self.control.state()
+        return {}
+
+    def put_back(self, active: list, saved: dict) -> None:
+        """The control's unit back to the step's start and the control to its state then (after a
+        bad step, a try launched ahead already undone: ``StepControl.settle``)."""
+        unit = self.control.unit
+        wp.copy(unit.x, unit.start)
+        self.control.restore(self.saved)
+
 
 class Rewind:
     """How a block's units are kept at its start and put back: x copied to ``start`` (the last good
@@ -231,7 +244,7 @@ class Rewind:
             wp.copy(u.start, u.x)
         return {i: u.stepper.state() for i, u in active} if whole else {}
 
-    def put_back(self, active: list, saved: dict, whole: bool) -> None:
+    def put_back(self, active: list, saved: dict) -> None:
         for i, u in active:
             wp.copy(u.x, u.start)
             if i in saved:
@@ -245,7 +258,8 @@ class Integrator:
     holds on any process stepping members of the same run (default: here). ``drop``: a unit bad
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
-    watched. ``rewind``: how a block is kept and put back (``Rewind``). ``step``: the steps
+    watched. ``rewind``: how a block is kept and put back (``Rewind``; a controlled step's, its
+    ``ControlledDt``). ``step``: the steps
     taken; ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
     name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files, put
     back with a block taken again; ``control``: the ``control.StepControl`` of a controlled Δt
@@ -310,7 +324,7 @@ class Integrator:
         if trouble is not None:
             self.step = b
             if watched or trouble == "abandoned":
-                self.rewind.put_back(active, saved, watched)
+                self.rewind.put_back(active, saved)
             if watched:
                 self.counters["rhs_evals"], self.counters["iterations"] = kept
         return m, trouble, detail
@@ -370,7 +384,7 @@ class Integrator:
         if not self.drop or not self.anywhere(len(bad) < len(active)):
             return "bad", bad
         for i, u, _ in bad:  # back to its last good state, not stepped again
-            self.rewind.put_back([(i, u)], saved, True)
+            self.rewind.put_back([(i, u)], saved)
             self.out[i] = b + 1
         observer.dropped(b + 1, bad)
         return None, None

@@ -5,11 +5,11 @@ its names here as the run knows them) steered to the days the run's activities a
 from __future__ import annotations
 
 from ..core.constants import DAY
-from ..integrator.control import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl, Tries, on_grid
+from ..integrator.control import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl, on_grid
 from ..integrator.core import ControlledDt
 from .schedules import AtDays
 
-__all__ = ["ATOL_FLOOR", "BALANCE_EVERY", "CAP_EVERY", "DT_GRID", "StepControl", "Tries", "on_grid", "steered"]
+__all__ = ["ATOL_FLOOR", "BALANCE_EVERY", "CAP_EVERY", "DT_GRID", "StepControl", "on_grid", "steered"]
 
 
 def steered(control: StepControl, last_day: float, activities: dict) -> ControlledDt:

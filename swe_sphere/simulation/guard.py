@@ -29,7 +29,7 @@ class RunObserver(Observer):
     not put back a step)."""
 
     def __init__(self, run, activities: dict, caller, ledger, every: int, signals, bar, lines=None, dropped=None):
-        self.run, self.activities, self.caller, self.ledger, self.first_step = run, activities, caller, ledger, run.step
+        self.run, self.activities, self.caller, self.ledger = run, activities, caller, ledger
         self.signals, self.bar, self.lines, self.steered, self.dropped = signals, bar, lines, None, dropped
         self.every, self.add, self.account = max(1, int(every)), ledger.add, ledger.account
 
@@ -41,7 +41,7 @@ class RunObserver(Observer):
         or b at its last day. The same on every rank."""
         if self.steered is not None:
             return b if self.steered.reached else b + 1
-        if self.every == 1 or b == self.first_step:  # the first step alone: first_step_time
+        if self.every == 1 or b == self.ledger.first_step:  # the first step alone: first_step_time
             return b + 1
         due = (a.schedule.next_after(b) for a in self.activities.values())
         return min(next_multiple(b, self.every), *(n for n in due if n is not None), *self.ledger.next_steps(b))

@@ -20,7 +20,7 @@ from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
 from ..core.interrupts import ABANDON_AFTER
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
-from .adaptive import Tries, steered
+from .adaptive import steered
 from .writers import Checkpointer, RunFiles
 
 
@@ -64,19 +64,20 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
         number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
 
 
-def run_steps(core, control, last_day: float, activities: dict, observer, stop_step: int, describe) -> Stop:
+def run_steps(core, observer, stop_step: int, last_day: float, describe) -> Stop:
     """The steps of a run (a ``Simulation``'s, of one member or many) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
-    own policy's at a fixed Δt; under ``control`` (an ``integrator.control.StepControl``) its policy
-    (``adaptive.steered``: each accepted step a block, landed on the days the ``activities`` are
-    due at and on ``last_day``; ``stop_step`` then unbounded), rewind (``adaptive.Tries``) and lone
-    steps the control's from then on (a controlled run steps by nothing else). Returns why the
-    steps stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)``
-    its line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state
-    and the control those of the step before."""
-    if control is not None:  # the control's Δt policy from now on, each accepted step a block checked at once
-        observer.steered = steered(control, last_day, activities)
-        core.policy, core.rewind, core.lone, stop_step = observer.steered, Tries(control), True, sys.maxsize
+    own policy's at a fixed Δt; under its ``control`` (an ``integrator.control.StepControl``) the
+    policy and rewind ``adaptive.steered``'s (each accepted step a block checked at once, landed on
+    the days the observer's activities are due at and on ``last_day``; ``stop_step`` then
+    unbounded) from then on (a controlled run steps by nothing else). Returns why the steps
+    stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its
+    line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state and
+    the control those of the step before."""
+    control = core.control
+    if control is not None:  # the control's Δt policy from now on, also how a step is put back
+        core.policy = core.rewind = observer.steered = steered(control, last_day, observer.activities)
+        core.lone, stop_step = True, sys.maxsize
     try:
         stop = core.advance(stop_step, observer)
     except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
@@ -89,7 +90,7 @@ def run_steps(core, control, last_day: float, activities: dict, observer, stop_s
     if stop.bad is not None:
         stop.blowup = describe(stop.bad)
         if control is not None:
-            core.rewind.put_back([], {}, False)
+            core.rewind.put_back([], {})
     return stop
 
 

@@ -780,7 +780,7 @@ class Simulation:
         parts = (self.run_state, self.activities, self, ledger, self.check_every, signals, bar, lines)
         observer = RunObserver(*parts, dropped=d.drop)
         last_day = self.scene.days if until_day is None else until_day
-        return run_steps(self.core, self.control, last_day, self.activities, observer, stop_step, d.describe)
+        return run_steps(self.core, observer, stop_step, last_day, d.describe)
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),

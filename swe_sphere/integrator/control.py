@@ -12,7 +12,7 @@ control under ``cfl``, a cap under ``error``: by default (``SceneControl.cfl_def
 ``config.control.CFL_FRACTION`` × the pair's measured Courant limit, holding the Courant number
 only (no growth bound: where it does not bind, the steps are the error controller's, bit for
 bit). Under ``balanced`` control the tolerances follow the grid (``Balance``: issue 64's "a run
-that asks for an accuracy"). A run's Δt policy under control is ``core.ControlledDt`` of a ``StepControl`` (``simulation.adaptive.steered``).
+that asks for an accuracy"). A run's Δt policy under control is ``core.ControlledDt`` of a ``StepControl`` (``simulation.guard.RunObserver.steer``).
 
 Its tries replay as graphs where a fixed-Δt run's steps do (``core.Unit.try_step``: on CUDA
 by default): a graph is keyed by Δt (``GraphCapture.graph_key``), and the controller's Δt are few,

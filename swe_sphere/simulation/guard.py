@@ -1,14 +1,15 @@
 """What a run adds to the integrator's guard (``integrator.core.Integrator``): where its blocks end,
-its signals, counts and activities (``RunObserver``); a blow-up's line is the integrator's
-(``integrator.core.trouble_line``)."""
+its signals, counts and activities, its Δt policy under step control landed on its activities'
+days (``RunObserver``); a blow-up's line is the integrator's (``integrator.core.trouble_line``)."""
 
 from __future__ import annotations
 
 import time
 
-from ..integrator.core import Observer
+from ..core.constants import DAY
+from ..integrator.core import ControlledDt, Observer
 from .activities import call_due
-from .schedules import next_multiple
+from .schedules import AtDays, next_multiple
 
 
 class RunObserver(Observer):
@@ -21,7 +22,7 @@ class RunObserver(Observer):
     and the progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of
     steps, its states flagged on the device and read once at its end (the integrator's guard:
     its module doc), ends every ``every`` steps (``Simulation.check_every``) and at each step an
-    activity is due (``block_end``). Under step control ``steered`` (an
+    activity is due (``block_end``). Under step control ``steered`` (``steer``'s
     ``integrator.core.ControlledDt``): each accepted step a block, to the policy's last day, not
     abandoned by a signal (a try's state is the control's). An ensemble's (``dropped`` given,
     the hook): each (index, unit, first bad node) dropped told to ``dropped(step, bad)``, a stop
@@ -32,6 +33,19 @@ class RunObserver(Observer):
         self.run, self.activities, self.caller, self.ledger = run, activities, caller, ledger
         self.signals, self.bar, self.lines, self.steered, self.dropped = signals, bar, lines, None, dropped
         self.every, self.add, self.account = max(1, int(every)), ledger.add, ledger.account
+
+    def steer(self, control, last_day: float) -> ControlledDt:
+        """The Δt policy of the run under ``control`` (an ``integrator.control.StepControl``), made
+        ``steered``: accepted steps (``integrator.core.ControlledDt``) to each day an ``AtDays``
+        activity is due at (output and restart times) up to ``last_day`` and ``last_day`` in
+        turn, each landed on exactly, a try launched ahead only where no activity of whole steps
+        (``EverySteps``, ``AtSteps``: they read x) is due after the step."""
+        schedules = [a.schedule for a in self.activities.values()]
+        days = {float(last_day), *(d for s in schedules if isinstance(s, AtDays) for d in s.days)}
+        counted = [s for s in schedules if not isinstance(s, AtDays)]  # of whole steps: due after a step, they read x
+        ahead = sorted(d for d in days if control.t < d * DAY and d <= last_day)  # not past the run's last day
+        self.steered = ControlledDt(control, ahead, lambda j: not any(s.due(j + 1) for s in counted))
+        return self.steered
 
     def block_end(self, b: int) -> int:
         """The last step of the block that starts after step b: the next multiple of

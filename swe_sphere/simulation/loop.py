@@ -20,7 +20,6 @@ from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
 from ..core.interrupts import ABANDON_AFTER
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
-from .adaptive import steered
 from .writers import Checkpointer, RunFiles
 
 
@@ -68,28 +67,27 @@ def run_steps(core, observer, stop_step: int, last_day: float, describe) -> Stop
     """The steps of a run (a ``Simulation``'s, of one member or many) by its integrator ``core`` to
     ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
     own policy's at a fixed Δt; under its ``control`` (an ``integrator.control.StepControl``) the
-    policy and rewind ``adaptive.steered``'s (each accepted step a block checked at once, landed on
+    policy and rewind ``observer.steer``'s (each accepted step a block checked at once, landed on
     the days the observer's activities are due at and on ``last_day``; ``stop_step`` then
     unbounded) from then on (a controlled run steps by nothing else). Returns why the steps
     stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its
     line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state and
     the control those of the step before."""
-    control = core.control
-    if control is not None:  # the control's Δt policy from now on, also how a step is put back
-        core.policy = core.rewind = observer.steered = steered(control, last_day, observer.activities)
+    if core.control is not None:  # the control's Δt policy from now on, also how a step is put back
+        core.policy = core.rewind = observer.steer(core.control, last_day)
         core.lone, stop_step = True, sys.maxsize
     try:
         stop = core.advance(stop_step, observer)
     except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
-        if control is None:
+        if core.control is None:
             raise
         return Stop(blowup=str(err))
     finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
-        if control is not None:
-            control.settle(core.units[0].x)
+        if core.control is not None:
+            core.control.settle(core.units[0].x)
     if stop.bad is not None:
         stop.blowup = describe(stop.bad)
-        if control is not None:
+        if core.control is not None:
             core.rewind.put_back([], {})
     return stop
 

@@ -464,7 +464,7 @@ class Simulation:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
         Blocks of steps by the integrator, each checked by its guard (``integrator.core.Integrator``), Δt
-        the fixed one's or under step control the controller's (``adaptive.steered``), then the activities due (``activities``): the run file and its
+        the fixed one's or under step control the controller's (``guard.RunObserver.steer``), then the activities due (``activities``): the run file and its
         ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
 
         Parameters

@@ -230,8 +230,7 @@ class ControlledDt:
     def put_back(self, active: list, saved: dict) -> None:
         """The control's unit back to the step's start and the control to its state then (after a
         bad step, a try launched ahead already undone: ``StepControl.settle``)."""
-        unit = self.control.unit
-        wp.copy(unit.x, unit.start)
+        wp.copy(self.control.unit.x, self.control.unit.start)
         self.control.restore(self.saved)
 
 

@@ -73,17 +73,16 @@ def run_steps(core, observer, stop_step: int, last_day: float, describe) -> Stop
     stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its
     line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state and
     the control those of the step before."""
-    if core.control is not None:  # the control's Δt policy from now on, also how a step is put back
-        core.policy = core.rewind = observer.steer(core.control, last_day)
-        core.lone, stop_step = True, sys.maxsize
-    try:
+    if core.control is None:
         stop = core.advance(stop_step, observer)
-    except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
-        if core.control is None:
-            raise
-        return Stop(blowup=str(err))
-    finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
-        if core.control is not None:
+    else:  # the control's Δt policy from now on, also how a step is put back, each step checked at once
+        core.policy = core.rewind = observer.steer(core.control, last_day)
+        core.lone = True
+        try:
+            stop = core.advance(sys.maxsize, observer)
+        except BlowUp as err:  # the controller's Δt below dt_min: the rejected tries put the state back
+            return Stop(blowup=str(err))
+        finally:  # a try launched ahead undone: the state the run stops with is the last accepted step's
             core.control.settle(core.units[0].x)
     if stop.bad is not None:
         stop.blowup = describe(stop.bad)

@@ -70,11 +70,10 @@ class RunObserver(Observer):
 
     def after(self, step: int, done: int) -> None:
         """The activities due (``call_due``), then the progress on ``bar`` and, where given, ``lines``."""
-        run, bar = self.run, self.bar
-        call_due(self.activities, run, self.caller)
-        bar.update(done)
+        call_due(self.activities, self.run, self.caller)
+        self.bar.update(done)
         if self.lines is not None:
-            self.lines.tick(step, run.time)
-        if step % 50 < done or step == run.scene.nsteps:  # a multiple of 50 in the steps done
-            speed = (run.time - run.scene.start_day) / max(run.counters["wall_time"], 1e-9)
-            bar.set_postfix(day=f"{run.time:.2f}", sim_days_per_s=f"{speed:.3g}")
+            self.lines.tick(step, self.run.time)
+        if step % 50 < done or step == self.run.scene.nsteps:  # a multiple of 50 in the steps done
+            speed = (self.run.time - self.run.scene.start_day) / max(self.run.counters["wall_time"], 1e-9)
+            self.bar.set_postfix(day=f"{self.run.time:.2f}", sim_days_per_s=f"{speed:.3g}")

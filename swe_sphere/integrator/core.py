@@ -258,8 +258,8 @@ class Integrator:
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
     watched. ``rewind``: how a block is kept and put back (``Rewind``; a controlled step's, its
-    ``ControlledDt``). ``step``: the steps
-    taken; ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
+    ``ControlledDt``; a gradient's sweep, its observer). ``step``: the steps taken;
+    ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
     name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files, put
     back with a block taken again; ``control``: the ``control.StepControl`` of a controlled Δt
     (None: fixed), which vouches for its steps' states (``StepControl.vouched``)."""

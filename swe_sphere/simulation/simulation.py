@@ -7,7 +7,6 @@ diagnostics are a component (``diagnostics``: ``state_diagnostics`` or the membe
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import time
 from operator import attrgetter
@@ -16,7 +15,6 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..config.parts import scene_stepper
 from ..config.scene import Scene, resolve_scene, with_days
 from ..core.arguments import (
     array_argument,
@@ -28,7 +26,6 @@ from ..core.arguments import (
     number_argument,
 )
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
-from ..core.clock import is_interval
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
@@ -42,6 +39,7 @@ from .activities import add_callback, log_activity
 from .build import ON_ROOT, build
 from .checkpoint import Checkpoint, continued, restore_run, write_restart
 from .guard import RunObserver
+from .intervals import Intervals
 from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
 from .members import Members, member_starts
 from .run_state import RunState
@@ -141,6 +139,9 @@ class Simulation:
         The state's fields gathered on rank 0, invariants, errors, Courant numbers and
         the log line (``state_diagnostics``); ``fields``, ``divergence``, ``courant``,
         ``stability_warning`` and ``largest_dt_within_limit`` are also the simulation's.
+    intervals : Intervals
+        The run's intervals in whole steps and Δt fitted to them (``intervals``); ``every``,
+        ``fitted_dt``, ``use_dt`` and ``fit_dt`` are also the simulation's.
     backend : Backend
         The device's choices (``core.backend``), decided once; ``device`` its name.
     members : int
@@ -206,7 +207,7 @@ class Simulation:
         progress = flag_argument("progress", progress, SceneError)
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
-        self._own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
+        own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
@@ -237,6 +238,7 @@ class Simulation:
             else:
                 self._build_one(scene, backend, progress, comm, start, initial, initial_diagnostics, graphs)
             self.counters["iterations"].update(dict.fromkeys(self.stepper.solvers, 0))
+        self.intervals = Intervals(self.run_state, self.activities, self.diagnostics, own_dt)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
@@ -541,76 +543,12 @@ class Simulation:
         result = ledger.result(self.core.step, files.history, **done)
         return outcome(stop, self.run_state, output, ckp, result)
 
-    # -- driven from Python (Oceananigans' ``Simulation``: step, inspect, call back); Δt fitted to the
-    # user's intervals where it is the simulation's own (``_own_dt``: not given, restored or stated in a Scene)
-
-    def fitted_dt(self, every: float, what: str = "every") -> tuple:
-        """(scene, stepper) at Δt shortened to the largest that divides ``every`` (days), the
-        run, its output intervals (where shorter than the run) and the intervals of the
-        activities scheduled in days: the running policy's (``integrator.core.FixedDt.fitted``),
-        the scene with its clock (a note in its ``notes`` naming ``what``) and the stepper to
-        step at it: one built anew at that Δt where Δt is folded into what it builds
-        (``variable_dt`` False), else this one (its ``set_dt`` called where the pair is used,
-        ``use_dt``). Nothing of the simulation written. ``SceneError`` (one line) after the first
-        step, for ``every`` <= 0, and where that Δt is less than half the present one (an
-        interval of odd decimals: give a dt, or an interval of whole steps)."""
-        s = self.scene
-        if self.core.step != 0 or not is_interval(every):
-            raise SceneError(
-                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.core.step})"
-            )
-        outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
-        days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-        spans = (s.run_days, *(d for d in outputs if d < s.run_days), *days)
-        policy = FixedDt.fitted(s.clock, every, what, *spans, step=self.core.policy.step)
-        scene = dataclasses.replace(s, dt=policy.clock.dt, notes=(*s.notes, policy.note), dt_source=policy.clock.source)
-        return scene, policy.stepper_for(self.core.units[0], functools.partial(scene_stepper, scene))
-
-    def use_dt(self, scene, stepper) -> None:
-        """Step on at ``scene``'s Δt (``fitted_dt``'s pair), the one place a simulation's Δt is
-        rewritten: the running policy's at it (``FixedDt.use``), the first unit's stepper
-        ``stepper``, every other unit's its own or one built anew alike; the activities scheduled
-        in days rescheduled in its steps and the start's diagnostics taken again (their Courant
-        numbers)."""
-        policy = FixedDt(self.core.policy.step, clock=scene.clock)
-        build = functools.partial(scene_stepper, scene)
-        for i, unit in enumerate(self.core.units):
-            policy.use(unit, stepper if i == 0 else policy.stepper_for(unit, build))
-        self.core.policy, self.scene = policy, scene
-        for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
-            if getattr(activity.schedule, "days", None) is not None:
-                activity.schedule = self.every(days=activity.schedule.days)
-        self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
-
-    def _steps_in(self, days: float, what: str) -> int:
-        """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
-        fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-        if self._own_dt and self.core.step == 0 and is_interval(days) and not self.scene.clock.is_whole(days):
-            self.fit_dt(days, what)
-        return self.scene.clock.steps(days, f"the interval {what}")
-
-    def fit_dt(self, every: float, what: str = "every") -> tuple:
-        """Shorten Δt before the first step (``fitted_dt``, with its ``SceneError``; then ``use_dt``:
-        set on the stepper, or one built anew, the activities' steps and the start's diagnostics
-        following); a note in ``scene.notes`` naming ``what``. Returns the new (scene, stepper)."""
-        scene, stepper = self.fitted_dt(every, what)
-        self.use_dt(scene, stepper)
-        return scene, stepper
-
-    def every(self, *, days: float | None = None, steps: int | None = None) -> EverySteps:
-        """The schedule of an activity (``activities``) due after every step that is a
-        multiple of ``steps``, or of the steps in ``days`` (whole steps), counted from
-        step 0 (Oceananigans' ``IterationInterval``); not at step 0, whose state the
-        caller has (under step control, of the accepted steps). ``ArgumentError`` (a ValueError)
-        for not exactly one of the two, or ``days`` under step control; ``SceneError`` for an
-        interval that is not whole steps."""
-        if (days is None) == (steps is None):
-            raise ArgumentError("an interval needs exactly one of every_steps, every_days")
-        if steps is not None and not (isinstance(steps, int) and steps >= 1):
-            raise ArgumentError(f"every_steps must be an integer >= 1 (got {steps!r})")
-        if days is not None and self.control is not None:
-            raise ArgumentError("every_days: under step control the steps are the controller's (give every_steps)")
-        return EverySteps(steps) if days is None else EverySteps(self._steps_in(days, "every_days"), days)
+    # -- driven from Python (Oceananigans' ``Simulation``: step, inspect, call back); intervals of whole
+    # steps, Δt fitted to them where it is the simulation's own (``intervals.Intervals``)
+    fitted_dt = _delegated(Intervals.fitted_dt, attrgetter("intervals"))
+    use_dt = _delegated(Intervals.use_dt, attrgetter("intervals"))
+    fit_dt = _delegated(Intervals.fit_dt, attrgetter("intervals"))
+    every = _delegated(Intervals.every, attrgetter("intervals"))
 
     def add_callback(
         self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
@@ -654,7 +592,7 @@ class Simulation:
             if end > self.scene.days:
                 self.scene = with_days(self.scene, end, "the scene's")
             return self.run(None, until_day=end)
-        return self._advance_to(self.core.step + (self._steps_in(days, "days") if days else 0))
+        return self._advance_to(self.core.step + (self.intervals.steps_in(days, "days") if days else 0))
 
     def _advance_to(self, target: int) -> RunResult:
         """Steps to ``target`` by ``run``'s loop (the scene lengthened past its end)."""
@@ -697,7 +635,7 @@ class Simulation:
                 "Simulation.steps steps a fixed dt: under step control ([time] control) the controller chooses the "
                 "steps, and a run goes to its end (Simulation.run)"
             )
-        per = self._steps_in(every, "every")
+        per = self.intervals.steps_in(every, "every")
         while (target := (self.core.step // per + 1) * per) <= self.scene.nsteps:
             self.run(None, until_step=target)
             yield self.time

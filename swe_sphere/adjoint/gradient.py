@@ -190,10 +190,9 @@ def gradient(
     disk = None if disk is False else disk
     if disk is not None and disk is not True:
         path_argument("disk", disk, "None, True or an existing folder's path")
-    if disk_interval is not None:
-        disk_interval = integer_argument("disk_interval", disk_interval, 1)
-        if disk is None:
-            raise ArgumentError(f"disk_interval needs a disk (got disk_interval={disk_interval!r}, disk=None)")
+    interval = snapshots if disk_interval is None else integer_argument("disk_interval", disk_interval, 1)
+    if disk_interval is not None and disk is None:
+        raise ArgumentError(f"disk_interval needs a disk (got disk_interval={interval!r}, disk=None)")
     comm_argument("comm", comm)
     if history is None and scene.control is not None:
         raise ArgumentError(
@@ -213,7 +212,6 @@ def gradient(
     work = wp.array(initial if x0 is None else x0, dtype=f64, device=topo.device)  # the stepper steps this array only
     stepper.prepare(work)  # from x(0): lts fixes its levels by its flow
     adjoint = step_adjoint(model, stepper, parameters)
-    interval = disk_interval or snapshots
     found, mu, taken, used = _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval)
     extra = {}
     if parameters:
@@ -229,11 +227,11 @@ def gradient(
 class _Sweep(Observer):
     """A sweep's advance as one block (the integrator's observer and rewind), its states checked
     where not yet (``verified``: the steps checked so far; a recomputation's are not checked
-    again), put back by loading its start, the state ``x`` it advances (``load``): the sweep
-    holds it, so nothing is kept."""
+    again), put back by loading its start, the state ``x`` it advances, into the stepper's
+    arrays (``pairs(x)``: (array, x's rows)): the sweep holds it, so nothing is kept."""
 
-    def __init__(self, load):
-        self.load, self.x, self.verified = load, None, 0
+    def __init__(self, pairs):
+        self.pairs, self.x, self.verified = pairs, None, 0
 
     def block_end(self, b: int) -> int:
         return sys.maxsize  # the advance's end (``Integrator.advance``'s stop step)
@@ -245,7 +243,8 @@ class _Sweep(Observer):
         return {}
 
     def put_back(self, active: list, saved: dict) -> None:
-        self.load(self.x)
+        for a, held in self.pairs(self.x):
+            wp.copy(a, held)
 
 
 def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, disk, interval):
@@ -261,11 +260,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     def pairs(x):  # (the stepper's array, x's rows): x's, then ``carried_arrays``' in their order now
         return [(work, x[X]), *((a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays()))]
 
-    def load(x):  # the stepper's arrays from x's rows
-        for a, held in pairs(x):
-            wp.copy(a, held)
-
-    forward = _Sweep(load)  # its steps whose states were checked: a recomputation's are not checked again
+    forward = _Sweep(pairs)  # its steps whose states were checked: a recomputation's are not checked again
 
     def step(unit, j, watch):  # x(j) to x(j + 1) in the stepper's arrays, watched where not yet checked
         stepper.step(work)
@@ -276,8 +271,8 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     core = Integrator([Unit(model, stepper, work, work, None)], FixedDt(step, clock), lone=False, rewind=forward)
 
     def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once
-        load(x)
         core.step, forward.x = k, x
+        forward.put_back([], {})  # the stepper's arrays from x's rows
         stop = core.advance(k + m, forward)
         if stop.bad is not None:
             j, trouble, detail = stop.bad
@@ -318,9 +313,8 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
         if k in observed:  # μ(k) += R Q λ_k, x(k) at hand
             observe(x, k)
 
-    start = np.zeros((rows, topo.N))
-    start[X] = work.numpy()  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
-    x, used = wp.array(start, dtype=f64, device=topo.device), 0
+    x, used = wp.zeros((rows, topo.N), dtype=f64, device=topo.device), 0
+    wp.copy(x[X], work)  # x̃(−1) is not read: the three-level schemes' first step is a midpoint step
     if disk is None:
         taken = 1 + sweep(steps, snapshots, x, advance, reverse, wp.clone)
     else:

@@ -27,7 +27,7 @@ def _continued(args, device, comm, members: int | None):
     from ..simulation.simulation import Simulation
 
     # the whole state on rank 0 only; an ensemble's on every rank (each steps its own members)
-    ck = checkpoint.read(args.continue_from) if members else checkpoint.read_on_root(args.continue_from, comm)
+    ck = checkpoint.read_on_root(args.continue_from, None if members else comm)
     for flag, value, have in (("--ne", args.ne, ck.scene.ne), ("--np", args.np, ck.scene.np)):
         if value is not None and value != have:
             raise CheckpointError(

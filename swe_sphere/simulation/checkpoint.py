@@ -92,10 +92,13 @@ def branch_attrs(scene: Scene) -> dict:
 
 
 def read_on_root(path, comm) -> Checkpoint:
-    """``read`` on rank 0 of ``comm`` (None or one rank: ``read``): the other ranks
+    """``read`` on rank 0 of ``comm`` (None or one rank: ``read``; None for an ensemble's file,
+    its members' states on every rank, each stepping its own): the other ranks
     get the checkpoint without its whole-grid arrays (x and the stepper's arrays
     None), which rank 0 hands out (``Topology.distribute``), so no other rank holds
-    the whole state. Raises what ``read`` raises, on every rank."""
+    the whole state. Raises ``CheckpointError`` for a ``path`` that is not one, and what
+    ``read`` raises, on every rank."""
+    path_argument("checkpoint", path, "a restart file's path (str or os.PathLike)", CheckpointError)
     if comm is None or comm.size == 1:
         return read(path)
     ck = from_root(comm, lambda: read(path))
@@ -121,11 +124,7 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
     restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
     file ``checkpoint.read`` refuses, one of the other kind (an ensemble's, a single run's), or a
     continuation whose run to ``days`` ends before the checkpoint's day."""
-    if isinstance(checkpoint, Checkpoint):
-        ck = checkpoint
-    else:  # an ensemble's members' states on every rank (each steps its own)
-        path_argument("checkpoint", checkpoint, "a restart file's path (str or os.PathLike)", CheckpointError)
-        ck = read(checkpoint) if members else read_on_root(checkpoint, comm)
+    ck = checkpoint if isinstance(checkpoint, Checkpoint) else read_on_root(checkpoint, None if members else comm)
     if members and ck.members is None:
         raise CheckpointError(f"{ck.path}: a single run's restart file (continue it with members=False)")
     if not members and ck.members is not None:

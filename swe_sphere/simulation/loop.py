@@ -107,20 +107,19 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     ``interrupted_at_day``) and its restart file. The files closed with the members dropped
     (``ends.drops``, as ``dropped_members``). Returns why the steps stopped, a signal after the last
     step's check taken as one (the output is whole)."""
-    step, stop = run.step, Stop()
     # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
     # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
     with signals, threadpool_limits(limits=1, user_api="blas"):
         try:
             with during, compile_timer(compiling):
-                files.record(step, whole=start, final=True, write=not step, diagnosed=diagnosed)
+                files.record(run.step, whole=start, final=True, write=not run.step, diagnosed=diagnosed)
                 if lines is not None:
                     lines.start(run.time, run.scene.days)
                 # a bar on a terminal only (disable=None), not redrawn into a log or mpiexec's pipe
                 on = {"disable": None if progress else True, "file": sys.stderr, "dynamic_ncols": True}
-                with tqdm(initial=step, total=run.scene.nsteps, unit="step", **on) as bar:
+                with tqdm(initial=run.step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(signals, bar)
-                if stop.blowup is not None and ends.last_good is not None:  # ``step`` is the last good step again
+                if stop.blowup is not None and ends.last_good is not None:  # ``run.step`` is the last good step again
                     files.end(run.step, ends.last_good, blowup=stop.blowup)
                 elif stop.blowup is not None:
                     files.set_attrs(stopped=stop.blowup)

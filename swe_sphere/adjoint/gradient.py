@@ -218,10 +218,9 @@ def gradient(
         d_g, d_omega = adjoint.d_planet / [model.g, scene.make_case().planet.omega]  # Ω > 0 (``Planet``)
         extra = dict(d_nu=adjoint.d_nu[0], d_nu_s=adjoint.d_nu[1], d_hs=adjoint.hs_gradient(), d_g=d_g, d_omega=d_omega)
         extra["d_hs"] = topo.bcast(topo.gather(extra["d_hs"]))
-    costs = dict(sorted(found["costs"].items()))
-    total = sum(costs.values())  # in increasing k; a final-state cost's J exactly (0 + J)
+    costs = dict(sorted(found["costs"].items()))  # J their sum in increasing k (a final-state cost's: 0 + J)
     final, mu = (topo.bcast(topo.gather(a)) for a in (found["final"], mu))  # the whole grid's, on every rank
-    return Gradient(total, mu, final, taken, steps, disk_bytes=used, costs=costs, **extra)
+    return Gradient(sum(costs.values()), mu, final, taken, steps, disk_bytes=used, costs=costs, **extra)
 
 
 class _Sweep(Observer):

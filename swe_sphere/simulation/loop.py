@@ -63,20 +63,24 @@ def check_run_arguments(output, overwrite, restart_every, restart_file, compress
         number_argument("restart_every", restart_every, "days", positive=True, error=SceneError)
 
 
-def run_steps(core, observer, stop_step: int, last_day: float, describe) -> Stop:
+def run_steps(core, observer, describe, until_step: int | None = None, until_day: float | None = None) -> Stop:
     """The steps of a run (a ``Simulation``'s, of one member or many) by its integrator ``core`` to
-    ``stop_step`` under ``observer`` (a ``guard.RunObserver``), each step's Δt the integrator's
-    own policy's at a fixed Δt; under its ``control`` (an ``integrator.control.StepControl``) the
+    ``until_step`` (None: the scene's last, ``observer.run.scene``) under ``observer`` (a
+    ``guard.RunObserver``), each step's Δt the integrator's own policy's at a fixed Δt; under its
+    ``control`` (an ``integrator.control.StepControl``; ``until_step`` then refused, ValueError) the
     policy and rewind ``observer.steer``'s (each accepted step a block checked at once, landed on
-    the days the observer's activities are due at and on ``last_day``; ``stop_step`` then
-    unbounded) from then on (a controlled run steps by nothing else). Returns why the steps
-    stopped (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its
-    line, or the controller's Δt below dt_min); after a controlled run's blow-up, the state and
-    the control those of the step before."""
+    the days the observer's activities are due at and on ``until_day``, default the scene's last)
+    from then on (a controlled run steps by nothing else). Returns why the steps stopped
+    (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its line, or
+    the controller's Δt below dt_min); after a controlled run's blow-up, the state and the control
+    those of the step before."""
+    scene = observer.run.scene
     if core.control is None:
-        stop = core.advance(stop_step, observer)
+        stop = core.advance(scene.nsteps if until_step is None else until_step, observer)
+    elif until_step is not None:
+        raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
     else:  # the control's Δt policy from now on, also how a step is put back, each step checked at once
-        core.policy = core.rewind = observer.steer(core.control, last_day)
+        core.policy = core.rewind = observer.steer(core.control, scene.days if until_day is None else until_day)
         core.lone = True
         try:
             stop = core.advance(sys.maxsize, observer)
@@ -93,7 +97,7 @@ def run_steps(core, observer, stop_step: int, last_day: float, describe) -> Stop
 
 def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, *, progress, lines, compiling) -> Stop:
     """The run wrapper of ``Simulation.run``: ``run`` (a
-    ``run_state.RunState``) stepped by ``blocks(signals, bar)`` (``run_steps``; a ``Stop``) with
+    ``run_state.RunState``) stepped by ``blocks(bar)`` (``run_steps``; a ``Stop``) with
     its files (``writers.RunFiles``, ``Checkpointer``) under ``signals`` (a ``StopSignals``), one
     BLAS thread, ``during`` (a context: the run's own activities), a progress bar and ``lines``
     (a ``progress.ProgressLines`` or None), the seconds compiling added to ``compiling[0]``. The
@@ -118,7 +122,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
                 # a bar on a terminal only (disable=None), not redrawn into a log or mpiexec's pipe
                 on = {"disable": None if progress else True, "file": sys.stderr, "dynamic_ncols": True}
                 with tqdm(initial=run.step, total=run.scene.nsteps, unit="step", **on) as bar:
-                    stop = blocks(signals, bar)
+                    stop = blocks(bar)
                 if stop.blowup is not None and ends.last_good is not None:  # ``run.step`` is the last good step again
                     files.end(run.step, ends.last_good, blowup=stop.blowup)
                 elif stop.blowup is not None:

@@ -534,10 +534,17 @@ class Simulation:
         )
         ledger = Ledger(self.counters, self.scene, self.core.step, notify if self.root else None)
         signals = StopSignals(self.diagnostics.ranks, catch_signals)
-        blocks = lambda signals, bar: self._blocks(signals, ledger, bar, until_step, progress_lines, until_day)  # noqa: E731
+        d, lines = self.diagnostics, progress_lines if self.root else None
+        parts = (self.run_state, self.activities, self, ledger, self.check_every, signals)
+
+        def blocks(bar) -> Stop:
+            # the steps under the run's guard, members dropped where they blow up (``Members.drop``)
+            observer = RunObserver(*parts, bar, lines, d.drop)
+            return run_steps(self.core, observer, d.describe, until_step, until_day)
+
         during = self._during_run(files, ckp, log)
         how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}
-        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, self.diagnostics, first, **how)
+        stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, d, first, **how)
         times = {"setup_time": self.setup_time, "compile_time": self._compile[0]}
         done = {"courant": courant, "output": output, "blowup": stop.blowup, "checkpoint": ckp.written, **times}
         result = ledger.result(self.core.step, files.history, **done)
@@ -703,22 +710,6 @@ class Simulation:
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
     # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities
-
-    def _blocks(self, signals: StopSignals, ledger: Ledger, bar, until_step, lines=None, until_day=None) -> Stop:
-        """The run's steps to ``until_step`` (None: the scene's end; under step control to the day
-        ``until_day``) by ``run_steps`` under the run's guard (``guard.RunObserver``: the activities
-        due after each good step, progress on ``bar`` and rank 0's ``lines``; members dropped
-        where they blow up under ``blow_up`` "drop"); ``until_step`` refused under step control
-        (ValueError). Returns why the loop stopped (``Stop``)."""
-        if self.control is not None and until_step is not None:
-            raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
-        stop_step = self.scene.nsteps if until_step is None else until_step
-        lines = lines if self.root else None
-        d = self.diagnostics  # members dropped where they blow up (``Members.drop``; None: one run), a bad step's line
-        parts = (self.run_state, self.activities, self, ledger, self.check_every, signals, bar, lines)
-        observer = RunObserver(*parts, dropped=d.drop)
-        last_day = self.scene.days if until_day is None else until_day
-        return run_steps(self.core, observer, stop_step, last_day, d.describe)
 
     def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
         """A run's run files and checkpointer (paths checked; the files created on rank 0),

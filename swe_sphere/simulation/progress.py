@@ -27,7 +27,6 @@ class ProgressLines:
         if not (isinstance(every, (int, float)) and not isinstance(every, bool) and every > 0):
             raise ValueError(f"a progress line's interval must be a number of seconds > 0 (got {every!r})")
         self.write, self.every = write, float(every)
-        self.day0 = self.end = self.t0 = self.last = self.day1 = self.t1 = math.nan
 
     def start(self, day: float, end_day: float) -> None:
         self.day0, self.end = day, end_day
@@ -42,12 +41,11 @@ class ProgressLines:
             return
         self.last = now
         done = (day - self.day0) / (self.end - self.day0) if self.end > self.day0 else 1.0
-        spent = now - self.t0
         left = ""
         if 0 < done < 1 and day > self.day1:
             left = f", about {_span((now - self.t1) * (self.end - day) / (day - self.day1))} left"
         self.write(
-            f"day {day:.4g} of {self.end:g} ({100 * done:.0f} %), step {step}, {_span(spent)} of wall time{left}"
+            f"day {day:.4g} of {self.end:g} ({100 * done:.0f} %), step {step}, {_span(now - self.t0)} of wall time{left}"
         )
 
 

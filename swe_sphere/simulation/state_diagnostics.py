@@ -111,10 +111,8 @@ class StateDiagnostics:
         if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
         start = self.run.initial or d  # diagnosing the initial state itself
-        for k in list(d):
-            d[f"{k}_change"] = (d[k] - start[k]) / abs(start[k])
-        d.update(errors)
-        d.update(self._courant_numbers(whole.u, whole.v, whole.h))
+        d |= {f"{k}_change": (d[k] - start[k]) / abs(start[k]) for k in d}
+        d.update(errors, **self._courant_numbers(whole.u, whole.v, whole.h))
         return d
 
     def log_line(self, d: dict | None = None) -> str | None:
@@ -124,11 +122,10 @@ class StateDiagnostics:
         numbers over the nodes. ``d``: the step's ``diagnose`` when the caller has
         it; else the fields are gathered here (the one device synchronisation).
         Call on every rank; None on the ranks > 0."""
-        if d is None:
-            whole = self.gather_fields()  # on every rank
-            d = self._figures(whole) if self.root else None
+        whole = self.gather_fields() if d is None else None  # on every rank
         if not self.root:
             return None
+        d = self._figures(whole) if d is None else d
         names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
         changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
         grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
@@ -142,8 +139,7 @@ class StateDiagnostics:
         the stepper's stability limit, measured or a table's from its stability polynomial
         (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
         ``advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or None without one."""
-        kind = self.run.stepper  # the instance: a table's limit is its own (``TableauRK``)
-        c = self.courant()
+        kind, c = self.run.stepper, self.courant()  # the instance: a table's limit is its own (``TableauRK``)
         if kind.courant_limit is not None:
             speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
             return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, kind.courant_limit_source

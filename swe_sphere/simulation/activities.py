@@ -20,14 +20,8 @@ import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .schedules import AtDays, EverySteps
+from .schedules import EverySteps, is_due
 from .writers import RunFiles
-
-
-def is_due(schedule, run) -> bool:
-    """Whether ``schedule`` is due at ``run``'s step (``run_state.RunState``; an ``AtDays`` at the
-    day the step landed on, ``RunState.event_day``)."""
-    return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)
 
 
 def add_callback(activities: dict, fn: Callable, schedule: EverySteps, name: str | None = None) -> None:
@@ -39,7 +33,7 @@ def add_callback(activities: dict, fn: Callable, schedule: EverySteps, name: str
 
 
 def call_due(activities: dict, run, owner) -> None:
-    """Call each of ``activities`` (in order) due at ``run``'s step (``is_due``) with ``owner``
+    """Call each of ``activities`` (in order) due at ``run``'s step (``schedules.is_due``) with ``owner``
     (the ``Simulation`` whose run it is)."""
     for activity in list(activities.values()):
         if is_due(activity.schedule, run):

@@ -27,8 +27,7 @@ def interval_days(scene: Scene, every_days: float) -> set[float]:
     its end, and the end: under step control (``Scene.control``) the times the steps land on.
     Exact from the days as written (as ``Clock.day``), so day 3 is 3.0, not 3.0000000000000004."""
     start, end, every = (Fraction(repr(float(d))) for d in (scene.start_day, scene.days, every_days))
-    n = math.floor((end - start) / every)
-    return {float(start + k * every) for k in range(1, n + 1)} | {float(end)}
+    return {float(start + k * every) for k in range(1, math.floor((end - start) / every) + 1)} | {float(end)}
 
 
 def restart_marks(scene: Scene, every_days: float) -> set:
@@ -93,7 +92,7 @@ class EverySteps:
 class AtDays:
     """Due at the model days in ``days`` (sorted): a run's output and restart times under step
     control (``StepControl``), whose steps land on them; ``due(step, day)`` asks of the day a
-    step landed on (None: a step between them; ``activities.is_due`` passes it)."""
+    step landed on (None: a step between them; ``is_due`` passes it)."""
 
     days: tuple
 
@@ -109,3 +108,10 @@ def at_marks(marks, controlled: bool) -> AtSteps | AtDays:
     """The schedule due at ``marks`` (a set): steps (``AtSteps``), or under step control
     (``controlled``) days (``AtDays``)."""
     return (AtDays if controlled else AtSteps)(tuple(sorted(marks)))
+
+
+def is_due(schedule, run) -> bool:
+    """Whether ``schedule`` is due at ``run``'s step (``run_state.RunState``; an ``AtDays`` at the
+    day the step landed on, ``RunState.event_day``): an activity's, and whether a run's file or
+    restart file holds its current step (``writers.RunFiles``, ``writers.Checkpointer``)."""
+    return schedule.due(run.step, run.event_day) if isinstance(schedule, AtDays) else schedule.due(run.step)

@@ -10,7 +10,7 @@ from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
 from . import checkpoint as ckpt
-from .schedules import at_marks, output_marks, restart_marks
+from .schedules import at_marks, is_due, output_marks, restart_marks
 
 
 def stream_path(output: Path, name: str) -> Path:
@@ -22,12 +22,6 @@ def stream_path(output: Path, name: str) -> Path:
 def restart_path(output: Path) -> Path:
     """The restart file beside a run's output: ``run.nc`` → ``run.restart.nc`` (a stream's name, always ``.nc``)."""
     return stream_path(output, "restart").with_suffix(".nc")
-
-
-def _holds(run, marks: set, step: int) -> bool:
-    """Whether ``marks`` (steps; under step control days, ``output_marks``) hold ``step``, the
-    current one under step control (``run_state.RunState.event_day``)."""
-    return step in marks if run.control is None else run.event_day in marks
 
 
 def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
@@ -73,7 +67,7 @@ class RunFiles:
     ``[[output.streams]]`` (``stream_path``), each at its own output times, under step control with the
     control's series); without ``output`` none, the diagnostics still taken at the
     scene's output steps. Rank 0's ``RunWriter`` s (``open``), the step each wrote last (on every
-    rank), their output times together (``steps``, and as the ``schedule`` of an activity) and
+    rank), their output times together (the ``schedule`` of an activity) and
     whether any holds the divergence; ``record`` diagnoses an output step (into ``history``, and
     ``on_output(step, x)``). An activity (``activities``): ``files(owner)`` records the run's step
     at the steps of ``schedule``. A run of members': ``diagnostics`` its
@@ -90,15 +84,15 @@ class RunFiles:
             series = ["steps", "rhs_evals", *solvers, "wall_time", *run.initial, *control]
         s = self.scene = run.scene
         self.grid, self.hs, self.series = grid, hs, list(series)
-        # the run files (None: none), each (path, fields, marks): the run file itself with the scene's
-        # ``output.fields``, then each ``[[output.streams]]`` with its own, each at its own output steps
+        # the run files (None: none), each (path, fields, schedule): the run file itself with the scene's
+        # ``output.fields``, then each ``[[output.streams]]`` with its own, each due at its own output steps
         # (``schedules.output_marks``; under step control its days)
         main = output_marks(s, s.output_every_days)  # the run file's times (without one, the diagnostics')
-        self.streams = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, main)]
+        marks = [] if output is None else [(Path(output), s.output_fields or OUTPUT_FIELDS, main)]
         for st in s.output_streams if output is not None else ():
-            self.streams.append((stream_path(output, st["name"]), st["fields"], output_marks(s, st["every_days"])))
-        self.steps = main.union(*(steps for _, _, steps in self.streams))
-        self.schedule = at_marks(self.steps, controlled)
+            marks.append((stream_path(output, st["name"]), st["fields"], output_marks(s, st["every_days"])))
+        self.streams = [(path, fields, at_marks(at, controlled)) for path, fields, at in marks]
+        self.schedule = at_marks(main.union(*(at for _, _, at in marks)), controlled)
         self.divergence = any("divergence" in fields for _, fields, _ in self.streams)
         self.writers = []  # rank 0's RunWriters, one a stream (none on the other ranks)
         self.last = [None] * len(self.streams)  # the step each run file wrote last (on every rank)
@@ -134,16 +128,15 @@ class RunFiles:
     abort = functools.partialmethod(_each, "abort")
 
     def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
-        """Diagnose ``step`` (state x, default the current one; ``whole`` its gathered
+        """Diagnose ``step`` (the run's, ``run.step``; state x, default the current one; ``whole`` its gathered
         fields and ``diagnosed`` their ``diagnose`` when the caller has them) and write it
         to the run files whose schedule holds it (``final``: to every one; ``write`` False:
         to none, the diagnostics kept in ``history`` alone). Call on every rank."""
-        run, s, c = self.run, self.run.scene, self.run.counters
+        run, c, day = self.run, self.run.counters, self.run.time  # the day under step control the control's
         if whole is None:  # once per output time, on every rank
             whole = self.diagnostics.gather_fields(x, divergence=self.divergence)
         ctl = run.control
         d = self.diagnostics.diagnose(run.seconds(step), x, whole) if diagnosed is None else diagnosed
-        day = s.day(step) if ctl is None else run.time  # under control the steps are not the fixed plan's
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
             d.update(dt=ctl.dt_last, rejected_steps=ctl.rejected, error_estimate=ctl.error_last)
@@ -156,7 +149,7 @@ class RunFiles:
         # to the files whose times hold it (``final``: every one) and that have not written it, marked as
         # written; rank 0 writes the fields DSS'd, element-local, s-1
         for i, (_, _, at) in enumerate(self.streams if write else ()):
-            if (final or _holds(run, at, step)) and self.last[i] != step:
+            if (final or is_due(at, run)) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers:  # rank 0's
                     self.writers[i].append(
@@ -167,9 +160,9 @@ class RunFiles:
         self.record(self.run.step)
 
     def end(self, step: int, x=None, **attrs) -> None:
-        """Close a run that stops early at ``step`` (state x, default the current one):
+        """Close a run that stops early at ``step`` (the run's; state x, default the current one):
         the step recorded where it is not yet, and the global ``attrs`` set (why it stopped)."""
-        if not _holds(self.run, self.steps, step) or any(at != step for at in self.last):  # some file lacks it
+        if not is_due(self.schedule, self.run) or any(at != step for at in self.last):  # some file lacks it
             self.record(step, x, final=True)
         self.set_attrs(**attrs)
 
@@ -184,28 +177,26 @@ class Checkpointer:
     An activity (``activities``): ``checkpointer(owner)`` saves at the steps of ``schedule``."""
 
     def __init__(self, run, write, bcast, root: bool, output, every_days: float | None, path, overwrite: bool):
-        self.run, self.write, self.overwrite, self.kept, self.written = run, write, overwrite, None, None
-        self.every_days = every_days
+        self.run, self.overwrite, self.kept, self.written = run, overwrite, None, None
+        self.write = functools.partial(write, restart_every=every_days)  # the interval kept in every file
         if path is None and output is not None:
             path = restart_path(output)
             if every_days is None and not overwrite and bcast(root and path.exists()):
                 path, self.kept = None, path
         self.path = path
         # steps, or under step control days (``schedules.restart_marks``)
-        self.steps = set() if every_days is None else restart_marks(run.scene, every_days)
-        self.schedule = at_marks(self.steps, run.control is not None)
+        marks = set() if every_days is None else restart_marks(run.scene, every_days)
+        self.schedule = at_marks(marks, run.control is not None)
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
     def interrupted(self, step: int, abandoned: bool) -> None:
-        """Save the restart file of a run stopped by a signal at ``step``, unless it has
+        """Save the restart file of a run stopped by a signal at ``step`` (the run's), unless it has
         none, already saved this step, or the step was ``abandoned`` (the stepper's history
         is then half updated)."""
-        if self.path is not None and not _holds(self.run, self.steps, step) and not abandoned:
+        if self.path is not None and not is_due(self.schedule, self.run) and not abandoned:
             self()
 
     def __call__(self, owner=None) -> None:
         """Write the restart file of the current step (call on every rank)."""
-        self.written = self.write(
-            self.path, overwrite=self.overwrite or self.written is not None, restart_every=self.every_days
-        )
+        self.written = self.write(self.path, overwrite=self.overwrite or self.written is not None)

@@ -8,9 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cases.scoring import truth
 from ..integrator.core import forwarded, trouble_line
 from ..model.diagnostics import courant_numbers, invariants
-from .writers import run_attrs
+from .checkpoint import branch_attrs
+from .writers import scene_attrs
 
 
 @dataclass
@@ -70,10 +72,26 @@ class StateDiagnostics:
 
     def opening(self, files, start: WholeFields, history: str | None, name: str, dfi, device: str) -> tuple:
         """(the Courant numbers of ``start``, the first diagnostics (None: the files take them), the
-        run file's attributes (``writers.run_attrs``; ``dfi`` its start, on ``device``), and what else
-        ``RunFiles.open`` takes (none)) of a run's files ``files`` (``name`` an ensemble's)."""
-        courant = self.courant(start)
-        return courant, None, run_attrs(self.run, self.case, dfi, device, self.topology.comm.size, history, courant), {}
+        global attributes of the run's files, and what else ``RunFiles.open`` takes (none)) of a
+        run's files ``files`` (``name`` an ensemble's): what ran (``writers.scene_attrs``), where (on
+        ``device`` over the topology's MPI ranks), from which start (the digital filter ``dfi`` or
+        None) and command line (``history``), and its Courant numbers at the start."""
+        courant, s = self.courant(start), self.run.scene
+        attrs = {
+            **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
+            **self.run.stepper.attrs(),  # e.g. which Butcher table ran
+            "device": device,
+            "mpi_ranks": self.topology.comm.size,
+            "initialization": "none" if s.initialization is None else s.initialization["method"],
+            "reference": truth(self.case, s.reference_file),  # what the error series are against
+            # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+            **{f"planet_{k}": v for k, v in s.planet.items()},
+            **(dfi.attrs(s.digital_filter) if dfi is not None else {}),
+            **({"continued_from_day": self.run.time} if self.run.step else {}),
+            **branch_attrs(s),
+            **{k: v for k, v in courant.items() if math.isfinite(v)},
+        }
+        return courant, None, attrs, {}
 
     def fields(self, x=None):
         """u, v, h (nnodes,) of the whole grid, gathered on rank 0 (call on every rank;

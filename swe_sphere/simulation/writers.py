@@ -6,10 +6,8 @@ import functools
 import math
 from pathlib import Path
 
-from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
-from . import checkpoint as ckpt
 from .schedules import at_marks, is_due, output_marks, restart_marks
 
 
@@ -36,28 +34,6 @@ def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
         "swe_sphere_version": package_version(),
         "scene": scene.as_dict(),
         **{k: getattr(scene, k) for k in ("case", "ne", "np", "stepper", "dt", "precision")},
-    }
-
-
-def run_attrs(run, case, dfi, device: str, ranks: int, history: str | None, courant: dict) -> dict:
-    """The global attributes of a run's files (``run`` its ``run_state.RunState``, of ``case``,
-    started by the digital filter ``dfi`` or None, on ``device`` over ``ranks`` MPI ranks): what
-    ran, where, from which start and command line (``history``), and its Courant numbers at the
-    start."""
-    s = run.scene
-    return {
-        **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
-        **run.stepper.attrs(),  # e.g. which Butcher table ran
-        "device": device,
-        "mpi_ranks": ranks,
-        "initialization": "none" if s.initialization is None else s.initialization["method"],
-        "reference": truth(case, s.reference_file),  # what the error series are against
-        # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
-        **{f"planet_{k}": v for k, v in s.planet.items()},
-        **(dfi.attrs(s.digital_filter) if dfi is not None else {}),
-        **({"continued_from_day": run.time} if run.step else {}),
-        **ckpt.branch_attrs(s),
-        **{k: v for k, v in courant.items() if math.isfinite(v)},
     }
 
 

@@ -108,10 +108,9 @@ class RunFiles:
         fields and ``diagnosed`` their ``diagnose`` when the caller has them) and write it
         to the run files whose schedule holds it (``final``: to every one; ``write`` False:
         to none, the diagnostics kept in ``history`` alone). Call on every rank."""
-        run, c, day = self.run, self.run.counters, self.run.time  # the day under step control the control's
+        run, c, ctl, day = self.run, self.run.counters, self.run.control, self.run.time  # day: the control's under it
         if whole is None:  # once per output time, on every rank
             whole = self.diagnostics.gather_fields(x, divergence=self.divergence)
-        ctl = run.control
         d = self.diagnostics.diagnose(run.seconds(step), x, whole) if diagnosed is None else diagnosed
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:

@@ -1,5 +1,6 @@
 """What a simulation tells about its state: its fields gathered on rank 0, their
-invariants, errors and Courant numbers, a log line and a stability warning."""
+invariants, errors and Courant numbers, its run file's attributes, a log line and a stability
+warning."""
 
 from __future__ import annotations
 

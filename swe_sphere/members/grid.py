@@ -54,9 +54,8 @@ class MemberGrid(CubedSphere):
             setattr(self, name, np.ascontiguousarray(np.tile(getattr(grid, name), members)))
         k = np.arange(members)
         self.gid = (grid.gid[None, :] + (k * u)[:, None]).ravel().astype(np.int32)
-        table = grid.dss_table[None].astype(np.int64)
-        self.dss_table = np.where(table >= 0, table + (k * n)[:, None, None], -1).reshape(-1, table.shape[2])
-        self.dss_table = self.dss_table.astype(np.int32)
+        table = grid.dss_table[None]  # its copies offset in int64 (k·n), then int32 as the grid's
+        self.dss_table = np.vstack(np.where(table >= 0, table + (k * n)[:, None, None], -1)).astype(np.int32)
         self.first = (grid.first[None, :] + (k * n)[:, None]).ravel().astype(np.int32)
         self.halo, self.halo_spheremp = np.zeros(0, dtype=np.int64), np.zeros(0)
 
@@ -75,10 +74,4 @@ class MemberGrid(CubedSphere):
 
     def member(self, a: np.ndarray, k: int) -> np.ndarray:
         """Member k's part (..., n) of an array (..., N·n) over the copies' nodes (a view)."""
-        return member_part(a, k, self.single.nnodes)
-
-
-def member_part(a: np.ndarray, k: int, n: int) -> np.ndarray:
-    """The k-th member's part (..., n) of an array (..., N·n), its members' n columns side by side
-    (a view)."""
-    return a[..., k * n : (k + 1) * n]
+        return a[..., k * self.single.nnodes : (k + 1) * self.single.nnodes]

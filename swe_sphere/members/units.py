@@ -56,11 +56,12 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
     return "in_turn" if why else asked or default
 
 
-def shared_unit(scene, case, fcor, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):
+def shared_unit(scene, case, own, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):
     """([the one ``Unit`` of every held member], the ``MemberGrid`` of their copies, one member's
-    model or None): one model over the copies, its ∇⁴'s substeps from one member's operator (the
-    one grid's spectral radius, not the copies'); ``fcor`` (held, n) each member's Coriolis
-    parameter (None: the case's)."""
+    model or None): one model of ``scene`` and ``case`` over the copies, its ∇⁴'s substeps from
+    one member's operator (the one grid's spectral radius, not the copies'); ``own`` the held
+    members' (scene, case) (``Variants``), each member's Coriolis parameter its case's (None:
+    ``case``'s)."""
     copies = MemberGrid(grid, len(starts))
     topology = Topology(copies, backend, threads, parts=[copies.elements])
     model = ShallowWater.from_scene(scene, copies, case, **options, topology=topology)
@@ -68,25 +69,25 @@ def shared_unit(scene, case, fcor, grid: CubedSphere, starts, backend, threads: 
     if model.hv is not None and model.hv.nu_max > 0 and len(starts) > 1:
         one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
         model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
-    if fcor is not None:  # in place: the launches read it
-        model.operators.fcor.assign(np.concatenate(list(fcor)))
+    if own is not None:  # in place: the launches read it
+        model.operators.fcor.assign(np.concatenate([c.fcor(grid.lat, grid.lon) for _, c in own]))
     return [Unit.of(model, scene_stepper(scene, model), starts, backend, graphs)], copies, one
 
 
-def own_units(scenes, cases, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str) -> tuple:
-    """(a ``Unit`` a held member (``scenes``, ``cases`` and ``starts`` its own, in order), None,
-    the first one's model), as ``shared_unit``'s: each unit its single run's model and stepper on
-    one ``Topology`` of the whole grid; the ∇⁴'s spectral radius, a property of the grid alone,
-    found once."""
+def own_units(scene, case, own, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str) -> tuple:
+    """(a ``Unit`` a held member (``starts`` their own, in order; ``own`` their (scene, case),
+    None: ``scene`` and ``case``), None, the first one's model), as ``shared_unit``'s: each unit
+    its single run's model and stepper on one ``Topology`` of the whole grid; the ∇⁴'s spectral
+    radius, a property of the grid alone, found once."""
     topology = Topology(grid, backend, threads, parts=[np.arange(grid.nelem)])
     units, radius = [], None
-    for scene, case, start in zip(scenes, cases, starts):
-        model = ShallowWater.from_scene(scene, grid, case, **options, topology=topology)
+    for (its_scene, its_case), start in zip(own or [(scene, case)] * len(starts), starts):
+        model = ShallowWater.from_scene(its_scene, grid, its_case, **options, topology=topology)
         if model.hv is not None and model.hv.nu_max > 0:  # the first one's, then handed on
             if radius is not None:
                 model.hv.use_biharmonic_radius(radius)
             radius = model.hv.biharmonic_radius()
-        units.append(Unit.of(model, scene_stepper(scene, model), start[None], backend, graphs))
+        units.append(Unit.of(model, scene_stepper(its_scene, model), start[None], backend, graphs))
     return units, None, units[0].model
 
 
@@ -108,15 +109,13 @@ def stepper_state(units: list, layout: str, held) -> dict:
 def on_rank_zero(comm, x: np.ndarray, state: dict) -> tuple:
     """(x, state) of every rank's members (``stepper_state``'s arrays side by side in member
     order, every rank's scalars) on rank 0 of ``comm``; (None, None) on the others (collective)."""
-    kinds = comm.allgather({k: isinstance(v, np.ndarray) for k, v in state.items()})
-    arrays = sorted({k for part in kinds for k, array in part.items() if array})
-    gathered = {k: comm.gather(state.get(k, np.zeros_like(x)), root=0) for k in arrays}
-    scalars = comm.gather({k: v for k, v in state.items() if k not in arrays}, root=0)
-    x = comm.gather(x)
+    parts = comm.gather((x, state), root=0)
     if comm.rank != 0:
         return None, None
-    state = {k: v for part in scalars for k, v in part.items()}
-    return np.concatenate(x, axis=-1), state | {k: np.concatenate(v, axis=-1) for k, v in gathered.items()}
+    arrays = sorted({k for _, part in parts for k, v in part.items() if isinstance(v, np.ndarray)})
+    scalars = {k: v for _, part in parts for k, v in part.items() if k not in arrays}
+    side = {k: np.concatenate([part.get(k, np.zeros_like(rows)) for rows, part in parts], axis=-1) for k in arrays}
+    return np.concatenate([rows for rows, _ in parts], axis=-1), scalars | side
 
 
 def held_state(state: dict, nodes, prefix: str | None) -> dict:

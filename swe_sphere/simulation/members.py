@@ -20,7 +20,7 @@ from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import area_rms, member_statistics
 from ..members import initial, units
-from ..members.grid import MemberGrid, member_part
+from ..members.grid import MemberGrid
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from .build import check_memory
@@ -74,8 +74,7 @@ class Members:
         self.case = case = scene.make_case()
         self.grid = grid = CubedSphere(scene.ne, scene.np, case.planet.a, mesh=scene.make_mesh())
         # each member's case: its own with Variants (its state, Coriolis parameter and truth), else the scene's
-        variants = isinstance(start, initial.Variants)
-        scenes, self.cases = start.scenes(scene, members) if variants else ([scene] * members, None)
+        scenes, self.cases = start.scenes(scene, members) if isinstance(start, initial.Variants) else (None, None)
         # the variants' values, as a restart file keeps them (JSON)
         self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in start.values.items()}
         starts = initial.initial_states(start, grid, case, members, self.cases)
@@ -89,17 +88,13 @@ class Members:
         self.layout = units.layout(scene, start, layout, backend.device, own=blow_up == "drop")
         # each unit's members (indices): all in one unit ("shared"), or one a unit ("in_turn")
         self.unit_held = [self.held] if self.layout == "shared" else list(self.held[:, None])
-        pick = lambda items: [items[k] for k in self.held]  # noqa: E731
-        # one BLAS thread, as a single run's build: the ∇⁴'s power iteration takes 40 norms
-        with threadpool_limits(limits=1, user_api="blas"):
-            threads = backend.threads() if options["threads"] is None else options["threads"]
-            parts = (grid, starts[self.held], backend, threads, self.options, graphs)
-            if self.layout == "shared":
-                fcor = None if self.cases is None else [c.fcor(grid.lat, grid.lon) for c in pick(self.cases)]
-                self.units, self.copies, self.one = units.shared_unit(scene, case, fcor, *parts)
-            else:
-                cases = pick(self.cases or [case] * members)
-                self.units, self.copies, self.one = units.own_units(pick(scenes), cases, *parts)
+        # the held members' own (scene, case) with Variants, else None: the scene's and its case
+        own = None if self.cases is None else [(scenes[k], self.cases[k]) for k in self.held]
+        # built under Simulation's one BLAS thread, as a single run's: the ∇⁴'s power iteration takes 40 norms
+        threads = backend.threads() if options["threads"] is None else options["threads"]
+        parts = (grid, starts[self.held], backend, threads, self.options, graphs)
+        build = units.shared_unit if self.layout == "shared" else units.own_units
+        self.units, self.copies, self.one = build(scene, case, own, *parts)
         # hs and f on the host (held, n), read at every output time (the grid's and the members' alone); g a member
         self.hs = self.each(lambda u: u.model.operators.hs.numpy())
         self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
@@ -112,13 +107,12 @@ class Members:
 
     def side(self, read) -> np.ndarray:
         """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
-        parts = [read(u) for u in self.units]
-        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
+        return np.concatenate([read(u) for u in self.units], axis=-1)
 
     def each(self, read) -> np.ndarray:
         """(held, ..., n): ``side(read)`` cut into this rank's members' columns, a member a row."""
         a = self.side(read)
-        return np.stack([member_part(a, k, self.grid.nnodes) for k in range(self.held.size)])
+        return np.ascontiguousarray(np.moveaxis(a.reshape(*a.shape[:-1], self.held.size, self.grid.nnodes), -2, 0))
 
     def anywhere(self, flag: bool) -> bool:
         """Whether ``flag`` holds on any rank (collective)."""

@@ -256,14 +256,12 @@ class Members:
             if not self.root:
                 return None
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
-        grid = self.copies if self.copies is not None and self.comm is None else MemberGrid(self.grid, self.members)
-        return x, state, keep, grid
+        return x, state, keep, MemberGrid(self.grid, self.members)
 
     def restore(self, ck) -> None:
         """The states and stepper histories of the checkpoint ``ck`` (an ensemble's) into the units."""
-        n = ck.x.shape[1] // ck.members
-        for u, k in zip(self.units, self.unit_held):
-            nodes = (k[:, None] * n + np.arange(n)).ravel()  # the unit's members' columns of the file's arrays
+        for u, k in zip(self.units, self.unit_held):  # the unit's members' columns of the file's arrays
+            nodes = np.arange(ck.x.shape[1]).reshape(ck.members, -1)[k].ravel()
             u.x.assign(ck.x[:, nodes])
             prefix = None if self.layout == "shared" else f"member{k[0]}_"
             u.stepper.restore(units.held_state(ck.stepper_state, nodes, prefix))

@@ -214,7 +214,7 @@ def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -
             "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
             f"(got {got(initial)})"
         )
-    return checked_states(states, case, "initial")
+    return checked_states(states, case, "initial", range(members))
 
 
 class MembersAlike(UserWarning):
@@ -238,11 +238,10 @@ def alike_line(members: int) -> str:
     )
 
 
-def checked_states(states: np.ndarray, case, name: str, members=None) -> np.ndarray:
-    """``states`` (M, 3, n) of ``members`` (their indices; None: 0 … M − 1), refused
-    (``ArgumentError`` naming ``name`` and the member) where not finite or where a member's h ≤ 0
-    and h is ``case``'s depth."""
-    members = np.arange(len(states)) if members is None else np.asarray(members)
+def checked_states(states: np.ndarray, case, name: str, members) -> np.ndarray:
+    """``states`` (M, 3, n) of ``members`` (their indices, M of them), refused (``ArgumentError``
+    naming ``name`` and the member) where not finite or where a member's h ≤ 0 and h is
+    ``case``'s depth."""
     if not np.isfinite(states).all():
         raise ArgumentError(f"{name}: a member's state is not finite")
     if case.h_is_depth and len(states):

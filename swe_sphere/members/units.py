@@ -101,9 +101,7 @@ def stepper_state(units: list, layout: str, held) -> dict:
     n = units[0].model.topology.N
     arrays = {k for st in states for k, v in st.items() if isinstance(v, np.ndarray)}
     out = {k: np.concatenate([st.get(k, np.zeros((3, n))) for st in states], axis=-1) for k in sorted(arrays)}
-    for k, st in zip(held, states):
-        out |= {f"member{k}_{key}": v for key, v in st.items() if key not in arrays}
-    return out
+    return out | {f"member{k}_{key}": v for k, st in zip(held, states) for key, v in st.items() if key not in arrays}
 
 
 def on_rank_zero(comm, x: np.ndarray, state: dict) -> tuple:
@@ -122,10 +120,8 @@ def held_state(state: dict, nodes, prefix: str | None) -> dict:
     """A unit's stepper state from a restart file's ``state`` (``stepper_state``): its members'
     columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
     ``prefix``, without it."""
-    arrays = {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
-    if prefix is None:
-        return {**state, **arrays}
-    return {**arrays, **{k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}}
+    own = state if prefix is None else {k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}
+    return own | {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
 
 
 def member_step(unit: Unit, j: int, watch: bool):

@@ -165,8 +165,7 @@ class Variants:
         for key, values in self.values.items():
             if np.ndim(values) != 1 or len(values) != members:
                 raise ArgumentError(f"variants: {key} needs {members} values, one a member (got {got(values)})")
-        scenes, cases = zip(*(self._scene(scene, k) for k in range(members)))
-        return list(scenes), list(cases)
+        return tuple(map(list, zip(*(self._scene(scene, k) for k in range(members)))))  # (scenes, cases)
 
     def _scene(self, scene, k: int) -> tuple:
         """Member k's scene (``scenes``), ``scene`` with each key at its k-th value, and its case."""

@@ -84,9 +84,8 @@ def own_units(scene, case, own, grid: CubedSphere, starts, backend, threads: int
     for (its_scene, its_case), start in zip(own or [(scene, case)] * len(starts), starts):
         model = ShallowWater.from_scene(its_scene, grid, its_case, **options, topology=topology)
         if model.hv is not None and model.hv.nu_max > 0:  # the first one's, then handed on
-            if radius is not None:
-                model.hv.use_biharmonic_radius(radius)
-            radius = model.hv.biharmonic_radius()
+            radius = radius or model.hv.biharmonic_radius()
+            model.hv.use_biharmonic_radius(radius)
         units.append(Unit.of(model, scene_stepper(its_scene, model), start[None], backend, graphs))
     return units, None, units[0].model
 
@@ -98,9 +97,8 @@ def stepper_state(units: list, layout: str, held) -> dict:
     if layout == "shared":
         return units[0].stepper.state()
     states = [u.stepper.state() for u in units]
-    n = units[0].model.topology.N
-    arrays = {k for st in states for k, v in st.items() if isinstance(v, np.ndarray)}
-    out = {k: np.concatenate([st.get(k, np.zeros((3, n))) for st in states], axis=-1) for k in sorted(arrays)}
+    arrays = sorted({k for st in states for k, v in st.items() if isinstance(v, np.ndarray)})
+    out = {k: np.concatenate([st.get(k, np.zeros((3, units[0].model.N))) for st in states], axis=-1) for k in arrays}
     return out | {f"member{k}_{key}": v for k, st in zip(held, states) for key, v in st.items() if key not in arrays}
 
 

@@ -192,10 +192,8 @@ class Members:
     def invariants_of(self, held: list) -> list[dict[str, float]]:
         """Each of this rank's members' invariants (``model.diagnostics.invariants`` on the one grid:
         the bits of the single run's) from their rows ``held`` (``MemberFields.held``)."""
-        return [
-            invariants(self.grid, *rows[:3], self.hs[k], rows[3], self.fcor[k], self.g[k])
-            for k, rows in enumerate(held)
-        ]
+        each = zip(held, self.hs, self.fcor, self.g)  # a member's rows, its hs, f and g
+        return [invariants(self.grid, *rows[:3], hs, rows[3], fcor, g) for rows, hs, fcor, g in each]
 
     def h_spread_rms(self) -> float:
         """``Simulation.h_spread_rms``."""

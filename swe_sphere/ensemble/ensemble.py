@@ -5,7 +5,6 @@ path, and ``from_checkpoint`` continues an ensemble's restart file, as they did.
 
 from __future__ import annotations
 
-import contextlib
 import warnings
 from pathlib import Path
 
@@ -72,13 +71,17 @@ class Ensemble(Simulation):
 
     def advance(self, days: float) -> None:
         """``Simulation.advance``, returning nothing; ``ArgumentError`` for days not whole steps."""
-        with _arguments():
+        try:
             super().advance(days)
+        except SceneError as err:  # an interval's, raised as the ArgumentError the old class raised
+            raise ArgumentError(str(err)) from None
 
     def add_callback(self, fn, *, every_steps: int | None = None, every_days: float | None = None) -> None:
         """``Simulation.add_callback``; ``ArgumentError`` for an interval not whole steps."""
-        with _arguments():
+        try:
             super().add_callback(fn, every_steps=every_steps, every_days=every_days)
+        except SceneError as err:  # as advance's
+            raise ArgumentError(str(err)) from None
 
     step_count = _old_name("step_count", "step", lambda ens: ens.core.step)
     day = _old_name("day", "time", lambda ens: ens.time)
@@ -118,12 +121,3 @@ class Ensemble(Simulation):
         """An ensemble's restart file continued (``Simulation.from_checkpoint(..., members=True)``)."""
         kw = {"days": days, "per_element": per_element, "threads": threads, "graphs": graphs, "comm": comm}
         return Simulation.from_checkpoint.__func__(cls, path, device, members=True, progress=False, **kw)
-
-
-@contextlib.contextmanager
-def _arguments():
-    """A ``SceneError`` of an interval raised as the ``ArgumentError`` the old class raised."""
-    try:
-        yield
-    except SceneError as err:
-        raise ArgumentError(str(err)) from None

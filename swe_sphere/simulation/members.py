@@ -57,11 +57,10 @@ class Members:
         if members is None and asked is None:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
         members = integer_argument("members", asked["members"] if members is None else members, 1)
-        if start is None and asked is not None and asked["perturbation"] > 0:
-            start = initial.Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees"))
-            initial.check_band(start.degrees, scene, "ensemble.degrees")
-        elif isinstance(start, initial.Perturbation):
-            initial.check_band(start.degrees, scene, "initial: perturbation degrees")
+        table = start is None and asked is not None and asked["perturbation"] > 0  # the scene's perturbation
+        start = initial.Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees")) if table else start
+        if isinstance(start, initial.Perturbation):  # its band within the grid's degrees, named as it was given
+            initial.check_band(start.degrees, scene, "ensemble.degrees" if table else "initial: perturbation degrees")
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:
@@ -230,8 +229,7 @@ class Members:
 
     def place(self, node: int) -> str:
         """Where the grid's element-local node ``node`` is, as a blow-up's line says it."""
-        lat, lon = np.degrees(self.grid.lat[node]), np.degrees(self.grid.lon[node])
-        return f"lat {lat:.2f}, lon {lon:.2f} degrees"
+        return f"lat {np.degrees(self.grid.lat[node]):.2f}, lon {np.degrees(self.grid.lon[node]):.2f} degrees"
 
     @property
     def dropped(self) -> dict[int, int]:
@@ -272,18 +270,17 @@ class Members:
         attributes (``name`` the run's, ``scene_attrs``), what else ``RunFiles.open`` takes (``members``,
         ``member_series``)) of the run's files ``files``, their ``member_series`` (time, member) set;
         ``dfi`` and ``device`` a single run's (unread)."""
-        run = self.run  # the run's step, scene and stepper now
-        first = self.diagnose(run.seconds(run.step), whole=start)
+        first = self.diagnose(self.run.seconds(self.run.step), whole=start)
         files.member_series = tuple(first)
         attrs = {
-            **scene_attrs(run.scene, "ensemble", history, name),
-            **run.stepper.attrs(),
+            **scene_attrs(self.run.scene, "ensemble", history, name),
+            **self.run.stepper.attrs(),
             "device": str(self.units[0].model.topology.device),
             "ensemble_layout": self.layout,
             "members": self.members,
             "initial_states": self.initial_states,
             "blow_up_policy": units.POLICIES[self.blow_up],
-            **({"continued_from_day": run.time} if run.step else {}),
+            **({"continued_from_day": self.run.time} if self.run.step else {}),
         }
         return {}, first, attrs, {"members": self.members, "member_series": files.member_series}
 

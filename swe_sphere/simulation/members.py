@@ -104,14 +104,10 @@ class Members:
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
             warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
-    def side(self, read) -> np.ndarray:
-        """``read(unit)`` of every unit, its members' columns side by side (held·n on the last axis)."""
-        return np.concatenate([read(u) for u in self.units], axis=-1)
-
     def each(self, read) -> np.ndarray:
-        """(held, ..., n): ``side(read)`` cut into this rank's members' columns, a member a row."""
-        a = self.side(read)
-        return np.ascontiguousarray(np.moveaxis(a.reshape(*a.shape[:-1], self.held.size, self.grid.nnodes), -2, 0))
+        """(held, ..., n): ``read(unit)`` (..., its members·n) of every unit cut into this rank's members'
+        columns, a member a row."""
+        return np.stack([part for u in self.units for part in np.split(read(u), u.members, axis=-1)])
 
     def anywhere(self, flag: bool) -> bool:
         """Whether ``flag`` holds on any rank (collective)."""
@@ -245,7 +241,8 @@ class Members:
     def restart_parts(self) -> tuple | None:
         """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
         file, on rank 0 (None on the others; collective): the members' arrays side by side."""
-        x, state = self.side(lambda u: u.x.numpy()), units.stepper_state(self.units, self.layout, self.held)
+        x = np.concatenate([u.x.numpy() for u in self.units], axis=-1)  # the members' columns side by side
+        state = units.stepper_state(self.units, self.layout, self.held)
         policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
         if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
             x, state = units.on_rank_zero(self.comm, x, state)

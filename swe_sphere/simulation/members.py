@@ -117,6 +117,10 @@ class Members:
         """Every rank's ``local`` (an entry a held member) in member order, on every rank (collective)."""
         return list(local) if self.comm is None else [e for part in self.comm.allgather(list(local)) for e in part]
 
+    def everyone_shown(self, each: list) -> list:
+        """``everyone`` of the held members' figures ``each`` (dicts), a dropped member's NaN (collective)."""
+        return self.everyone(dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each))
+
     def bcast(self, value):
         """Rank 0's ``value`` on every rank (collective)."""
         return value if self.comm is None else self.comm.bcast(value, root=0)
@@ -134,7 +138,12 @@ class Members:
         return np.stack(self.everyone(self.held_states()))
 
     def set_states(self, states) -> None:
-        """``Simulation.set_states``."""
+        """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
+        v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
+        members' (a dropped member's, NaN in ``states()``, left out). The steppers go on from them
+        as from their own (a multistep stepper's earlier states and a solver's guesses kept).
+        ``ArgumentError`` as for an ``initial`` array, nothing set; a run of one member without
+        ``members``: ``ArgumentError`` (its state is ``x``)."""
         shape = (self.members, 3, self.grid.nnodes)
         try:
             states = np.asarray(states, dtype=float)
@@ -170,7 +179,7 @@ class Members:
         step's ``gather_fields`` where taken (``x`` unread)."""
         held = (self.gather_fields() if whole is None else whole).held
         each = [{**d, **e} for e, d in zip(self.errors_of([m[:3] for m in held], t), self.invariants_of(held))]
-        each = self.everyone(dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each))
+        each = self.everyone_shown(each)
         return {key: np.array([d[key] for d in each]) for key in each[0]}
 
     def errors_of(self, held, t: float) -> list[dict[str, float]]:
@@ -190,8 +199,23 @@ class Members:
         each = zip(held, self.hs, self.fcor, self.g)  # a member's rows, its hs, f and g
         return [invariants(self.grid, *rows[:3], hs, rows[3], fcor, g) for rows, hs, fcor, g in each]
 
+    def invariants(self) -> list[dict[str, float]]:
+        """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
+        (``model.diagnostics.invariants`` on the one grid: the bits of the single run's; a dropped
+        member's NaN, as in ``states()``; collective)."""
+        return self.everyone_shown(self.invariants_of(self.gather_fields().held))
+
+    def errors(self) -> list[dict[str, float]]:
+        """Each member's errors now against the case's truth, as a single run's file has them
+        (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
+        the wind against an exact solution, or against the scene's spectral reference where
+        it stores this day); {} a member for a case with neither (a dropped member's NaN; collective)."""
+        return self.everyone(self.errors_of(self.held_states(), self.run.seconds(self.run.step)))
+
     def h_spread_rms(self) -> float:
-        """``Simulation.h_spread_rms``."""
+        """The members' spread of h now (m): the area-weighted RMS over the sphere of their
+        standard deviation (``io.run_file.member_statistics``, ``area_rms``), the run file's
+        ``h_spread_rms`` (collective)."""
         return area_rms(self.grid, member_statistics(self.grid.to_unique(self.states()[:, 2]))[1])
 
     # -- blow-ups and dropped members -----------------------------------------------------

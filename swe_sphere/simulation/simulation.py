@@ -53,8 +53,21 @@ __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
 def _delegated(method, owner):
-    """A simulation's method that is its ``owner(sim)``'s ``method``, whose doc it has."""
-    return functools.wraps(method)(lambda sim, *args, **kw: method(owner(sim), *args, **kw))
+    """A simulation's method that is its ``owner(sim)``'s method of ``method``'s name (a single
+    run's diagnostics or the members'), whose doc it has."""
+    return functools.wraps(method)(lambda sim, *args, **kw: getattr(owner(sim), method.__name__)(*args, **kw))
+
+
+def _members_only(what: str):
+    """The owner of a simulation's method ``what`` of its members (``Simulation.ensemble``), refused
+    (``ArgumentError`` naming ``what``) for a run made without ``members``."""
+
+    def members(sim) -> Members:
+        if sim.ensemble is None:
+            raise ArgumentError(f"{what}: a run of members (Simulation(..., members=N)); this one has its state in x")
+        return sim.ensemble
+
+    return members
 
 
 class Simulation:
@@ -395,40 +408,12 @@ class Simulation:
     # a step of the stepper, not watched nor counted: a controlled run's tries (``integrator.control.StepControl``)
     try_step = _delegated(Unit.try_step, lambda sim: sim.core.units[0])
 
-    # -- the members' states and diagnostics on (N, n) (``members.Members``; one run: N = 1)
-    def states(self) -> np.ndarray:
-        """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
-        nodes (a dropped member's NaN), on every rank (collective)."""
-        return self.diagnostics.states()
-
-    def set_states(self, states) -> None:
-        """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
-        v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
-        members' (a dropped member's, NaN in ``states()``, left out). The steppers go on from them
-        as from their own (a multistep stepper's earlier states and a solver's guesses kept).
-        ``ArgumentError`` as for an ``initial`` array, nothing set; a run of one member without
-        ``members``: ``ArgumentError`` (its state is ``x``)."""
-        self._members_only("set_states").set_states(states)
-
-    def invariants(self) -> list[dict[str, float]]:
-        """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
-        (``model.diagnostics.invariants`` on the one grid: the bits of the single run's; collective)."""
-        m = self._members_only("invariants")
-        return m.everyone(m.invariants_of(m.gather_fields().held))
-
-    def errors(self) -> list[dict[str, float]]:
-        """Each member's errors now against the case's truth, as a single run's file has them
-        (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
-        the wind against an exact solution, or against the scene's spectral reference where
-        it stores this day); {} a member for a case with neither (collective)."""
-        m = self._members_only("errors")
-        return m.everyone(m.errors_of(m.held_states(), self.run_state.seconds(self.core.step)))
-
-    def h_spread_rms(self) -> float:
-        """The members' spread of h now (m): the area-weighted RMS over the sphere of their
-        standard deviation (``io.run_file.member_statistics``, ``area_rms``), the run file's
-        ``h_spread_rms`` (collective)."""
-        return self._members_only("h_spread_rms").h_spread_rms()
+    # -- the members' states and diagnostics on (N, n) (``members.Members``; the others refused for one run)
+    states = _delegated(StateDiagnostics.states, attrgetter("diagnostics"))
+    set_states = _delegated(Members.set_states, _members_only("set_states"))
+    invariants = _delegated(Members.invariants, _members_only("invariants"))
+    errors = _delegated(Members.errors, _members_only("errors"))
+    h_spread_rms = _delegated(Members.h_spread_rms, _members_only("h_spread_rms"))
 
     @property
     def dropped(self) -> dict[int, int]:
@@ -439,12 +424,6 @@ class Simulation:
     def drops(self) -> list[str]:
         """The one line of each member dropped, in the order they were (collective)."""
         return list(self.diagnostics.drops)
-
-    def _members_only(self, what: str) -> Members:
-        """The members' part; ``ArgumentError`` for a run made without ``members``."""
-        if self.ensemble is None:
-            raise ArgumentError(f"{what}: a run of members (Simulation(..., members=N)); this one has its state in x")
-        return self.ensemble
 
     def run(
         self,

@@ -111,3 +111,23 @@ def test_members_in_turn_fit_their_own_dt_alike(stepper):
     one.advance(days=0.125)
     for state in many.states():
         np.testing.assert_array_equal(state, one.states()[0])
+
+
+def test_a_dropped_members_invariants_and_errors_are_nan_as_its_state():
+    """``blow_up="drop"``: ``invariants()`` took a dropped member's from its frozen, blown-up state
+    (finite numbers) where ``states()`` and ``errors()`` gave NaN. Now every per-member figure of a
+    dropped member is NaN, and the others' are their single runs' (mass to the bit)."""
+    kw = {"ne": 2, "np": 4, "stepper": "rk4", "dt": 1800.0, "days": 4.0, "progress": False}
+    good = Simulation("tc2_steady", "cpu", members=3, **kw).states()
+    bad = good.copy()
+    bad[1, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps
+    many = Simulation("tc2_steady", "cpu", members=3, initial=bad, blow_up="drop", layout="in_turn", **kw)
+    many.run()
+    assert list(many.dropped) == [1]
+    invariants, errors = many.invariants(), many.errors()
+    assert set(invariants[1]) == {"mass", "total_energy", "potential_enstrophy"}
+    assert all(np.isnan(v) for v in (*invariants[1].values(), *errors[1].values())) and errors[1]
+    one = Simulation("tc2_steady", "cpu", start=bad[2], **kw)
+    one.run()
+    mass = one.diagnostics.diagnose(one.scene.days * 86400.0)["mass"]
+    assert invariants[2]["mass"] == mass and np.isfinite([*invariants[0].values(), *errors[0].values()]).all()

@@ -10,7 +10,6 @@ import math
 from typing import NamedTuple
 
 from ..core.arguments import got
-from ..core.clock import MAX_STEPS
 from ..core.errors import SceneError
 from ..steppers import STEPPERS
 from .resolve import Spacing
@@ -179,11 +178,14 @@ def every_span(table: dict, hv: SceneHyperviscosity, grid: SceneGrid, radius: fl
 
 def auto_every(span: float, dt: float, steps: tuple) -> int:
     """The k of ``every = "auto"`` at ``dt`` (s): the largest k whose kΔt is at most ``span``
-    (s) and at most ``MAX_STEPS`` + 1, preferring the largest k ≥ half that which divides one of
-    ``steps`` (the steps of an output interval and of the whole run: the ∇⁴ then done at those
-    times)."""
-    ratio = span / dt * (1 + 1e-9)  # no k past MAX_STEPS: no run has that many steps
-    most = max(1, math.floor(ratio)) if ratio < MAX_STEPS + 1 else MAX_STEPS + 1
+    (s) and that is at most the run's steps, preferring the largest k ≥ half that which divides
+    one of ``steps`` (the steps of an output interval and of the whole run, the run's last: the
+    ∇⁴ then done at those times). A run of fewer steps than ``span`` holds takes its ∇⁴ once, at
+    its end, over the whole run."""
+    run = steps[-1]
+    # no k past the run: one took no ∇⁴ at all (TC5 ne4 at dt 100 s: k 18, a 5-step run undamped)
+    ratio = span / dt * (1 + 1e-9)
+    most = max(1, math.floor(ratio)) if ratio < run else run
     # the largest that divides either: the output interval's alone took k = 3 where 6 of the
     # run's fit (galewsky ne16 np6, 333 steps a day), the ∇⁴ twice as often for nothing
     found = [_largest_divisor(n, (most + 1) // 2, most) for n in steps]
@@ -214,16 +216,19 @@ def resolve_every(
     """(k, notes): the steps between ∇⁴ applications of [hyperviscosity] ``every`` on the run's
     grid and Δt (s). An integer is k as given; "auto" ``auto_every``'s k within ``every_span``'s
     ``span`` (``steps``: an output interval's and the whole run's), and 1 where k > 1 does not
-    fit (``span`` None: a controlled Δt, a three-level scheme, no ∇⁴). Raises ``SceneError`` naming the key: an integer
-    k > 1 under a controlled Δt or with a stepper whose ∇⁴ runs after every step, with its reason
-    (``Stepper.dense_hyperviscosity``)."""
+    fit (``span`` None: a controlled Δt, a three-level scheme, no ∇⁴); a note names k > 1 (and
+    says where it is the run's steps: the ∇⁴ once, at its end). Raises ``SceneError`` naming the
+    key: an integer k > 1 under a controlled Δt or with a stepper whose ∇⁴ runs after every
+    step, with its reason (``Stepper.dense_hyperviscosity``)."""
     every = table.get("every", 1)
     if every == "auto":
         k = 1 if span is None else auto_every(span.span, dt, steps)
         if k == 1:
             return 1, ()
+        once = ": once, at the run's end" if k == steps[-1] else ""
         return k, (
-            f"hyperviscosity every {k} steps ({k * dt / 60:.3g} min; the grid scale's e-folding {span.tau / 3600:.3g} h)",
+            f"hyperviscosity every {k} steps{once} ({k * dt / 60:.3g} min; the grid scale's e-folding "
+            f"{span.tau / 3600:.3g} h)",
         )
     if every > 1 and controlled:
         raise SceneError(

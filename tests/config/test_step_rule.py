@@ -74,22 +74,24 @@ def test_a_hyperviscosity_past_a_floats_range_is_refused():
 def test_the_auto_schedule_of_tiny_steps_or_a_weak_hyperviscosity_ends():
     """``every = "auto"`` searched k from span / Δt down to half of it, one by one: a Δt of 1e-9 s
     (galewsky at ne4), a run of 1e-9 days or a 1e20 h e-folding hung ``load_scene``. The search
-    takes the fewer of the divisors and cofactors, k is at most ``MAX_STEPS`` + 1 (no run has so
-    many steps: the ∇⁴ is not applied in it), and a Δt priced for a sparser ∇⁴ is one of a run
-    within ``MAX_STEPS``."""
+    takes the fewer of the divisors and cofactors, k is at most the run's steps (the ∇⁴ once, at
+    its end, where the span holds more), and a Δt priced for a sparser ∇⁴ is one of a run within
+    ``MAX_STEPS``."""
     with pytest.raises(SceneError, match=r"^dt = 3e-09 s gives 1.73e\+14 steps to day 6 \(more than 1e\+09\)$"):
         load_scene("galewsky", ne=4, overrides={"time.dt": 1e-9})
     weak = load_scene("galewsky", overrides={"hyperviscosity.efold_hours": 1e20})
-    assert (weak.dt, weak.hypervis_every) == (load_scene("galewsky").dt, MAX_STEPS + 1)
-    short = load_scene("galewsky", ne=4, days=1e-9)
-    assert (short.nsteps, short.hypervis_every) == (1, 20_000_000)  # 28.8 min of 8.64e-5 s steps
+    assert (weak.dt, weak.nsteps, weak.hypervis_every) == (load_scene("galewsky").dt, 3288, 3288)
+    short = load_scene("galewsky", ne=4, days=1e-9)  # 28.8 min of 8.64e-5 s steps: k was 2e7
+    assert (short.nsteps, short.hypervis_every) == (1, 1)
     # the largest k in 5..10 that divides 499 (prime) or 2994 = 2·3·499: 6; as the search one by one
     assert auto_every(1800.0, DAY / 499, (499, 2994)) == 6
     # span / Δt = 1e7: k in 5e6..1e7; 14e6's largest divisor there is 7e6 (its cofactor 2, found first)
-    assert auto_every(1e7, 1.0, (14_000_000, 3)) == 7_000_000
-    assert auto_every(1e7, 1.0, (4_999_999,)) == 10_000_000  # none within: span / Δt itself
+    assert auto_every(1e7, 1.0, (3, 14_000_000)) == 7_000_000
+    # none within (20_000_003 is odd, and neither 3 nor 4 divides it): span / Δt itself
+    assert auto_every(1e7, 1.0, (4_999_999, 20_000_003)) == 10_000_000
     # a count beyond the search's reach (10⁴⁰⁰ steps: an output interval past any run) is not searched
-    assert auto_every(1800.0, 1e-300, (1, 10**400)) == MAX_STEPS + 1
+    # (one by one down from 999_999_999, its first divisor there, 2²·5¹², lies 2.3e7 candidates away)
+    assert auto_every(1800.0, 1e-300, (10**400, MAX_STEPS - 1)) == MAX_STEPS - 1
 
 
 def test_a_dt_np_ratio_past_a_floats_range_is_refused():

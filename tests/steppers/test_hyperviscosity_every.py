@@ -123,6 +123,35 @@ def test_auto_takes_the_most_steps_within_a_sixth_of_the_grid_scale_e_folding(sc
     assert any(f"every {every} steps" in n for n in s.notes) == (every > 1)
 
 
+def short_tc5(every, steps: int):
+    """TC5 on ne 2 np 4, ``steps`` steps of 100 s (τ/6 = 30 min holds 18) with its output
+    interval of a day (864 steps, which 18 divides)."""
+    days = steps * 100.0 / DAY
+    return load_scene("tc5_mountain", ne=2, np_=4, dt=100.0, days=days, overrides={"hyperviscosity.every": every})
+
+
+def test_auto_in_a_run_shorter_than_its_span_takes_the_hyperviscosity_once_at_its_end():
+    """``every = "auto"`` in a run of fewer steps than τ/6 holds: k was 18 (the day's 864 steps
+    divide by it), past a run of 5 or 12 steps, which then took no ∇⁴ at all (bitwise the state
+    of none), its header saying "every 18 steps". k is now the run's steps: the ∇⁴ over the
+    whole run at its end, bitwise ``model.hyperviscosity`` over 5Δt after 5 steps of dynamics, as
+    a run of 18 steps takes it after its 18th (HOMME's ``advance_hypervis`` runs every step: no
+    run of it goes without)."""
+    for steps in (5, 12, 18):
+        s = short_tc5("auto", steps)
+        assert (s.nsteps, s.hypervis_every) == (steps, steps)
+        assert f"hyperviscosity every {steps} steps: once, at the run's end" in " ".join(s.notes)
+    assert short_tc5("auto", 20).hypervis_every == 18  # longer than the span: as before
+    sparse, bare = make_sim(short_tc5("auto", 5)), make_sim(short_tc5(1000, 5))  # 1000: none due
+    sparse.run()
+    bare.run()
+    undamped = bare.x.numpy().copy()
+    bare.model.hyperviscosity(bare.x, 5 * 100.0)
+    np.testing.assert_array_equal(sparse.x.numpy(), bare.x.numpy())
+    # the ∇⁴'s change of h (m): 0.255 at its largest (0.139 with it every step; 0 before)
+    assert 0.2 < np.abs(sparse.x.numpy()[2] - undamped[2]).max() < 0.3
+
+
 def test_the_command_line_refuses_a_misfit_every(capsys, tmp_path):
     """``-s hyperviscosity.every=0``: one line, exit 2, nothing written."""
     line = cli_one_line(

@@ -179,7 +179,7 @@ class StepControl:
         self.courant = None if self.cfl is None else CourantMax(topology, topology.grid.dx, model.g, pressure)
         self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
         self.courant_passes = 0  # the Courant numbers' passes taken; under "error", skipped where the cap cannot bind
-        self.courant_queued = 0  # of them, those queued before the try launched ahead (``_pass_likely``)
+        self.courant_queued = 0  # of them, those queued before the try launched ahead (``_cap_idle``)
         self._trend = 1.0  # the last accepted step's proposal over its Δt
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
@@ -212,8 +212,7 @@ class StepControl:
         which may then be launched ahead (``lookahead``). Raises ``BlowUp`` when the proposal
         falls below dt_min short of the target."""
         c, tries = self.control, StepStats(0, {})
-        ahead, self.ahead = self.ahead, None
-        if ahead is None:
+        if self.ahead is None:
             wp.copy(self.x0, x)  # the tries' start
         else:  # the start of the try launched ahead is in xs: the two swap (a copy fewer a step)
             self.x0, self.xs = self.xs, self.x0
@@ -224,40 +223,39 @@ class StepControl:
             dt = max(on_grid(dt), min(dt, c.dt_min))  # not below dt_min by the rounding alone
             landing = left <= dt * (1 + LANDING_SLACK)
             dt = left if landing else dt
-            if ahead is not None and (ahead.t, ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
-                self._undo(x, ahead, self.x0)
-                ahead = None
+            if self.ahead is not None and (self.ahead.t, self.ahead.dt) != (t, dt):  # launched ahead at another Δt
+                self._undo(x, self.x0)
             if dt < c.dt_min and not landing:
                 raise BlowUp(
                     f"step {self.accepted + 1} at day {t / DAY:.6g}: the controller's dt {dt:.4g} s fell below "
                     f"time.dt_min = {c.dt_min:g} s ({self.rejected} steps rejected so far)"
                 )
-            if ahead is not None:  # launched ahead as this try
-                saved, stats, ahead = ahead.saved, ahead.stats, None
+            if self.ahead is not None:  # launched ahead as this try
+                saved, stats, self.ahead = self.ahead.saved, self.ahead.stats, None
                 self.ahead_taken += 1
             else:
                 saved, stats = self._try(x, t, dt)
             if self.balance is not None:
                 self.balance.tolerances(self.x0, t, dt)
-            queued = False  # the Courant pass over x queued before the next try (``_pass_likely``)
+            queued = False  # the Courant pass over x queued before the next try (``_cap_idle``)
             if self.error:
                 self.norm.launch(self.stepper.error_estimate, self.x0, x)
                 if self.lookahead and quiet and not landing and left - dt > dt * (1 + LANDING_SLACK):
-                    if self.courant is not None and self._pass_likely(dt):
+                    if self.courant is not None and not self._cap_idle(dt, dt * self._trend, CAP_LIKELY * CAP_MARGIN):
                         self.courant.launch(x)
                         queued = True
                     if self.xs is None:
                         self.xs = wp.zeros_like(x)
                     wp.copy(self.xs, x)  # the next try's start, launched on x
-                    ahead = _Ahead(t + dt, dt, *self._try(x, t + dt, dt))
+                    self.ahead = _Ahead(t + dt, dt, *self._try(x, t + dt, dt))
             iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
             tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
-            ok, proposal, err = self._propose(x if ahead is None else self.xs, dt, queued)
+            ok, proposal, err = self._propose(x if self.ahead is None else self.xs, dt, queued)
             if ok:
                 break
             self.rejected += 1
-            if ahead is not None:  # undone with the try it followed
-                self.ahead_dropped, ahead = self.ahead_dropped + 1, None
+            if self.ahead is not None:  # undone with the try it followed
+                self.ahead_dropped, self.ahead = self.ahead_dropped + 1, None
             wp.copy(x, self.x0)
             self.stepper.rollback(saved)
             self.dt = proposal
@@ -270,7 +268,6 @@ class StepControl:
         self.dt_last, self.error_last = dt, err
         reached = target if landing else t + dt
         self.history.append((reached, dt, err))
-        self.ahead = ahead
         return reached, tries
 
     def _try(self, x, t: float, dt: float) -> tuple:
@@ -280,18 +277,18 @@ class StepControl:
         saved = self.stepper.checkpoint() if self.error else None
         return saved, self.unit.try_step(x)
 
-    def _undo(self, x, ahead: _Ahead, start) -> None:
-        """x and the stepper back to where the try launched ahead started (its state ``start``)."""
+    def _undo(self, x, start) -> None:
+        """x and the stepper back to where the try launched ahead started (its state ``start``), the
+        try gone (``ahead``)."""
         wp.copy(x, start)
-        self.stepper.rollback(ahead.saved)
-        self.ahead_dropped += 1
+        self.stepper.rollback(self.ahead.saved)
+        self.ahead_dropped, self.ahead = self.ahead_dropped + 1, None
 
     def settle(self, x) -> None:
         """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state
         (before the run stops, or anything reads it)."""
         if self.ahead is not None:
-            self._undo(x, self.ahead, self.xs)
-            self.ahead = None
+            self._undo(x, self.xs)
 
     def vouched(self) -> bool:
         """Whether the last accepted step's state was found good by its norm or Courant pass
@@ -316,7 +313,9 @@ class StepControl:
             self.checked = math.isfinite(err)  # every node finite and wet (``ErrorNorm``)
             if ok:
                 self._trend = proposal / dt
-        if self.cfl is not None and ok and not self._cap_idle(dt, proposal):  # a retry's Δt is the error controller's
+        idle = self.error and ok and self.cfl is not None and self._cap_idle(dt, proposal)  # the pass skipped
+        self._since_pass += idle
+        if self.cfl is not None and ok and not idle:  # a retry's Δt is the error controller's
             numbers, bad = self.courant.read(dt) if queued else self.courant(x, dt)
             self.courant_passes += 1
             self.courant_queued += queued
@@ -329,26 +328,19 @@ class StepControl:
             self.checked = self.checked or not bad
         return ok, proposal, err
 
-    def _pass_likely(self, dt: float) -> bool:
-        """Whether the Courant pass after a try of ``dt`` is likely to be taken (``_cap_idle``
-        false), judged before its norm is read from the last accepted step's proposal over its
-        Δt: where it is, the pass is queued behind the norm and before the try launched ahead,
-        so that its read does not wait for that try and leave the card idle while the host
-        launches the next (a pass after every 4th step of TC5 ne60 ``rk43`` at rtol 1e-6 on an
-        H100, the host waiting 0.39 ms in each under cProfile). A pass queued and not taken is dropped;
-        one taken and not queued runs then, as without lookahead: the same numbers either way."""
-        if self._since_pass >= CAP_EVERY:
-            return True
-        proposal = dt * self._trend
-        return proposal > dt * self.cfl.max_change or proposal >= CAP_LIKELY * CAP_MARGIN * self._cap_seconds
-
-    def _cap_idle(self, dt: float, proposal: float) -> bool:
-        """Whether the Courant pass is skipped after this step (``CAP_MARGIN``): under "error",
-        the proposal well below the last pass's cap and within its growth bound; counted."""
-        idle = self.error and self._since_pass < CAP_EVERY and proposal < CAP_MARGIN * self._cap_seconds
-        idle = idle and proposal <= dt * self.cfl.max_change
-        self._since_pass += idle
-        return idle
+    def _cap_idle(self, dt: float, proposal: float, margin: float = CAP_MARGIN) -> bool:
+        """Whether the Courant pass may be skipped after a step of ``dt`` proposing ``proposal``
+        (under "error": ``CAP_MARGIN``): the proposal below ``margin`` of the last pass's cap and
+        within its growth bound, the pass taken within ``CAP_EVERY`` steps.
+        Also asked before a try's norm is read (``lookahead``), of the last accepted step's
+        proposal over its Δt and ``CAP_LIKELY`` of the margin: where the pass is likely to be
+        taken (not idle so), it is queued behind the norm and before the try launched ahead, so
+        that its read does not wait for that try and leave the card idle while the host launches
+        the next (a pass after every 4th step of TC5 ne60 ``rk43`` at rtol 1e-6 on an H100, the
+        host waiting 0.39 ms in each under cProfile). A pass queued and not taken is dropped; one
+        taken and not queued runs then, as without lookahead: the same numbers either way."""
+        within = self._since_pass < CAP_EVERY and proposal <= dt * self.cfl.max_change
+        return within and proposal < margin * self._cap_seconds
 
     def summary(self) -> str:
         """The summary's line: accepted and rejected steps, the smallest, mean and largest Δt."""

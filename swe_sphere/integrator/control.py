@@ -35,7 +35,7 @@ launched ahead and undone is not counted: ``ahead_dropped``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections import namedtuple
 
 import numpy as np
 import warp as wp
@@ -129,15 +129,9 @@ def on_grid(dt: float) -> float:
     return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
 
 
-@dataclass(frozen=True)
-class _Ahead:
-    """A try launched ahead (``StepControl.lookahead``): its start t (s), Δt (s), the stepper's
-    checkpoint before it and its ``StepStats``."""
-
-    t: float
-    dt: float
-    saved: object
-    stats: StepStats
+# a try launched ahead (``StepControl.lookahead``): its start t (s), Δt (s), the stepper's checkpoint
+# before it and its ``StepStats``
+_Ahead = namedtuple("_Ahead", "t dt saved stats")
 
 
 class StepControl:
@@ -223,8 +217,8 @@ class StepControl:
             dt = max(on_grid(dt), min(dt, c.dt_min))  # not below dt_min by the rounding alone
             landing = left <= dt * (1 + LANDING_SLACK)
             dt = left if landing else dt
-            if self.ahead is not None and (self.ahead.t, self.ahead.dt) != (t, dt):  # launched ahead at another Δt
-                self._undo(x, self.x0)
+            if self.ahead is not None and (self.ahead.t, self.ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
+                self._undo(x, self.x0, self.ahead.saved)
             if dt < c.dt_min and not landing:
                 raise BlowUp(
                     f"step {self.accepted + 1} at day {t / DAY:.6g}: the controller's dt {dt:.4g} s fell below "
@@ -254,10 +248,7 @@ class StepControl:
             if ok:
                 break
             self.rejected += 1
-            if self.ahead is not None:  # undone with the try it followed
-                self.ahead_dropped, self.ahead = self.ahead_dropped + 1, None
-            wp.copy(x, self.x0)
-            self.stepper.rollback(saved)
+            self._undo(x, self.x0, saved)  # a try launched ahead undone with the try it followed
             self.dt = proposal
         self.dt = max(proposal, self.dt) if landing else proposal  # a step cut to land: not a shrink
         self.accepted += 1
@@ -277,18 +268,20 @@ class StepControl:
         saved = self.stepper.checkpoint() if self.error else None
         return saved, self.unit.try_step(x)
 
-    def _undo(self, x, start) -> None:
-        """x and the stepper back to where the try launched ahead started (its state ``start``), the
-        try gone (``ahead``)."""
+    def _undo(self, x, start, saved) -> None:
+        """x and the stepper back to the state ``start`` and the stepper's checkpoint ``saved`` (a
+        rejected try's start, or where the try launched ahead started), a try launched ahead gone
+        (``ahead``, counted in ``ahead_dropped``)."""
         wp.copy(x, start)
-        self.stepper.rollback(self.ahead.saved)
-        self.ahead_dropped, self.ahead = self.ahead_dropped + 1, None
+        self.stepper.rollback(saved)
+        self.ahead_dropped += self.ahead is not None
+        self.ahead = None
 
     def settle(self, x) -> None:
         """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state
         (before the run stops, or anything reads it)."""
         if self.ahead is not None:
-            self._undo(x, self.xs)
+            self._undo(x, self.xs, self.ahead.saved)
 
     def vouched(self) -> bool:
         """Whether the last accepted step's state was found good by its norm or Courant pass

@@ -165,16 +165,15 @@ class FixedDt:
         its output intervals, its activities'; ``Clock.fitted``), its clock's source and ``note``
         saying so. ``SceneError`` (one line) where that Δt is less than half ``clock``'s (an
         interval of odd decimals: give a dt, or an interval of whole steps)."""
-        fit = clock.fitted(every, *spans, source=f"{clock.source}, shortened to divide {what} = {every:g} days")
+        divide = f"divide {what} = {every:g} days"  # the clock's source and the note say it alike
+        fit = clock.fitted(every, *spans, source=f"{clock.source}, shortened to {divide}")
         if fit.dt < clock.dt / 2:
             raise SceneError(
                 f"{what} = {every:g} days is not a whole number of steps of dt = {clock.dt:g} s, and the longest dt "
                 f"that divides it, the run and its output intervals is {fit.dt:g} s, less than half: give a dt, "
                 "or an interval of whole steps"
             )
-        return cls(
-            step, clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to divide {what} = {every:g} days"
-        )
+        return cls(step, clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to {divide}")
 
     def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
         """Step j + 1 of ``unit``, its state flagged on the device where ``watch``; its ``StepStats``."""

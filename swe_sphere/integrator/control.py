@@ -129,9 +129,9 @@ def on_grid(dt: float) -> float:
     return 2.0 ** (math.floor(math.log2(dt) * DT_GRID) / DT_GRID)
 
 
-# a try launched ahead (``StepControl.lookahead``): its start t (s), Δt (s), the stepper's checkpoint
-# before it and its ``StepStats``
-_Ahead = namedtuple("_Ahead", "t dt saved stats")
+# a try (``StepControl._try``; one launched ahead, ``StepControl.lookahead``): its start t (s), Δt (s),
+# the stepper's checkpoint before it (None under "cfl") and its ``StepStats``
+_Try = namedtuple("_Try", "t dt saved stats")
 
 
 class StepControl:
@@ -178,12 +178,11 @@ class StepControl:
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
         model.launches.limit, model.launches.variants = LAUNCH_LISTS, LAUNCH_VARIANTS
-        self.x0 = unit.start  # a step's start: the guard's last good state (``core.ControlledDt.put_back``)
         # the next try launched before this one's norm is read: where the host's read would idle the card
         on_one_card = not topology.backend.host and not topology.distributed
         self.lookahead = on_one_card and self.norm is not None and self.balance is None and stepper.explicit
         self.xs = None  # the start of a try launched ahead (the end of the try before it), made at first use
-        self.ahead: _Ahead | None = None  # the try launched ahead, not yet taken or undone
+        self.ahead: _Try | None = None  # the try launched ahead, not yet taken or undone
         self.ahead_taken = self.ahead_dropped = 0
         self.accepted = self.rejected = self.capped = 0  # capped: accepted steps whose next Δt the cap set
         self.dt_smallest, self.dt_sum, self.dt_largest = math.inf, 0.0, 0.0
@@ -207,33 +206,29 @@ class StepControl:
         falls below dt_min short of the target."""
         c, tries = self.control, StepStats(0, {})
         if self.ahead is None:
-            wp.copy(self.x0, x)  # the tries' start
+            wp.copy(self.unit.start, x)  # the tries' start
         else:  # the start of the try launched ahead is in xs: the two swap (a copy fewer a step)
-            self.x0, self.xs = self.xs, self.x0
-            self.unit.start = self.x0
+            self.unit.start, self.xs = self.xs, self.unit.start
         while True:
             left = target - t
             dt = min(self.dt, c.dt_max or math.inf)
             dt = max(on_grid(dt), min(dt, c.dt_min))  # not below dt_min by the rounding alone
             landing = left <= dt * (1 + LANDING_SLACK)
             dt = left if landing else dt
-            if self.ahead is not None and (self.ahead.t, self.ahead.dt) != (t, dt):  # launched ahead at another Δt: undone
-                self._undo(x, self.x0, self.ahead.saved)
+            if self.ahead is not None and (self.ahead.t, self.ahead.dt) != (t, dt):  # launched ahead at another Δt
+                self._undo(x, self.unit.start, self.ahead.saved)  # undone
             if dt < c.dt_min and not landing:
                 raise BlowUp(
                     f"step {self.accepted + 1} at day {t / DAY:.6g}: the controller's dt {dt:.4g} s fell below "
                     f"time.dt_min = {c.dt_min:g} s ({self.rejected} steps rejected so far)"
                 )
-            if self.ahead is not None:  # launched ahead as this try
-                saved, stats, self.ahead = self.ahead.saved, self.ahead.stats, None
-                self.ahead_taken += 1
-            else:
-                saved, stats = self._try(x, t, dt)
+            self.ahead_taken += self.ahead is not None  # launched ahead as this try, else tried now
+            tried, self.ahead = self.ahead or self._try(x, t, dt), None
             if self.balance is not None:
-                self.balance.tolerances(self.x0, t, dt)
+                self.balance.tolerances(self.unit.start, t, dt)
             queued = False  # the Courant pass over x queued before the next try (``_cap_idle``)
             if self.error:
-                self.norm.launch(self.stepper.error_estimate, self.x0, x)
+                self.norm.launch(self.stepper.error_estimate, self.unit.start, x)
                 if self.lookahead and quiet and not landing and left - dt > dt * (1 + LANDING_SLACK):
                     if self.courant is not None and not self._cap_idle(dt, dt * self._trend, CAP_LIKELY * CAP_MARGIN):
                         self.courant.launch(x)
@@ -241,14 +236,14 @@ class StepControl:
                     if self.xs is None:
                         self.xs = wp.zeros_like(x)
                     wp.copy(self.xs, x)  # the next try's start, launched on x
-                    self.ahead = _Ahead(t + dt, dt, *self._try(x, t + dt, dt))
-            iterations = {k: tries.iterations.get(k, 0) + n for k, n in stats.iterations.items()}
-            tries = StepStats(tries.rhs_evals + stats.rhs_evals, {**tries.iterations, **iterations})
+                    self.ahead = self._try(x, t + dt, dt)
+            iterations = {k: tries.iterations.get(k, 0) + n for k, n in tried.stats.iterations.items()}
+            tries = StepStats(tries.rhs_evals + tried.stats.rhs_evals, {**tries.iterations, **iterations})
             ok, proposal, err = self._propose(x if self.ahead is None else self.xs, dt, queued)
             if ok:
                 break
             self.rejected += 1
-            self._undo(x, self.x0, saved)  # a try launched ahead undone with the try it followed
+            self._undo(x, self.unit.start, tried.saved)  # a try launched ahead undone with the try it followed
             self.dt = proposal
         self.dt = max(proposal, self.dt) if landing else proposal  # a step cut to land: not a shrink
         self.accepted += 1
@@ -261,12 +256,12 @@ class StepControl:
         self.history.append((reached, dt, err))
         return reached, tries
 
-    def _try(self, x, t: float, dt: float) -> tuple:
-        """A try of ``dt`` from t (s) on x: (the stepper's checkpoint before it or None, its ``StepStats``)."""
+    def _try(self, x, t: float, dt: float) -> _Try:
+        """A try of ``dt`` from t (s) on x (``_Try``)."""
         self.stepper.set_dt(dt)
         self.stepper.t0 = t - self.stepper.steps * dt  # the forcing's clock: the time reached, exactly
         saved = self.stepper.checkpoint() if self.error else None
-        return saved, self.unit.try_step(x)
+        return _Try(t, dt, saved, self.unit.try_step(x))
 
     def _undo(self, x, start, saved) -> None:
         """x and the stepper back to the state ``start`` and the stepper's checkpoint ``saved`` (a
@@ -276,6 +271,8 @@ class StepControl:
         self.stepper.rollback(saved)
         self.ahead_dropped += self.ahead is not None
         self.ahead = None
+
+    x0 = property(lambda self: self.unit.start, doc="A step's start: the guard's last good state (``unit.start``).")
 
     def settle(self, x) -> None:
         """Undo a try launched ahead (``lookahead``), if one is: x the last accepted step's state

@@ -120,8 +120,10 @@ class Balance:
 LAUNCH_LISTS = 64
 
 
-# the times and Δt (s; the day reached, days) a ``StepControl.state`` holds, restored as floats
+# the times and Δt (s; the day reached, days) a ``StepControl.state`` holds, then its counts and whether
+# the last step landed, each restored as its type (``capped`` apart: a file from before it has none)
 _TIMES = ("dt", "t", "day", "dt_smallest", "dt_sum", "dt_largest", "dt_last", "error_last")
+_RESTORED = {**dict.fromkeys(_TIMES, float), "accepted": int, "rejected": int, "landed": bool}
 
 
 def on_grid(dt: float) -> float:
@@ -172,8 +174,9 @@ class StepControl:
         self.cfl = None if control.cfl is None else CflController(control.cfl, gravity_waves, growth)
         self.courant = None if self.cfl is None else CourantMax(topology, topology.grid.dx, model.g, pressure)
         self.checked = False  # the last try's state found good by the norm or the Courant numbers' pass
-        self.courant_passes = 0  # the Courant numbers' passes taken; under "error", skipped where the cap cannot bind
-        self.courant_queued = 0  # of them, those queued before the try launched ahead (``_cap_idle``)
+        # the Courant numbers' passes taken (under "error", skipped where the cap cannot bind) and of them those
+        # queued before the try launched ahead (``_cap_idle``)
+        self.courant_passes = self.courant_queued = 0
         self._trend = 1.0  # the last accepted step's proposal over its Δt
         self._cap_seconds, self._since_pass = 0.0, 0  # the last pass's cap (s; 0: take one), steps since it
         self.dt = float(stepper.dt)
@@ -338,8 +341,7 @@ class StepControl:
         cap = ""
         if self.error and self.cfl is not None:
             cap = f"; the Courant cap {self.cfl.cfl:.3g} set the next dt after {self.capped} of them"
-        if self.balance is not None and self.balance.sigma is not None:
-            b = self.balance
+        if (b := self.balance) is not None and b.sigma is not None:
             cap += f"; balanced at {b.fraction:g} of the spatial error's rate (last {b.rate.last:.3g} s⁻¹, relative)"
         return (
             f"{self.accepted} steps accepted, {self.rejected} rejected; dt smallest {self.dt_smallest:.4g} s, "
@@ -354,10 +356,8 @@ class StepControl:
 
     def restore(self, state: dict) -> None:
         """Continue from ``state()``: the same steps as the control it came from."""
-        for k in _TIMES:
-            setattr(self, k, float(state[k]))
-        self.accepted, self.rejected = int(state["accepted"]), int(state["rejected"])
-        self.landed = bool(state["landed"])
+        for k, kind in _RESTORED.items():
+            setattr(self, k, kind(state[k]))
         self.capped = int(state.get("capped", 0))  # a restart file from before the count: 0
         if self.error:
             self.controller.restore(state["controller"])

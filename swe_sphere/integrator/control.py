@@ -337,7 +337,6 @@ class StepControl:
 
     def summary(self) -> str:
         """The summary's line: accepted and rejected steps, the smallest, mean and largest Δt."""
-        mean = self.dt_sum / max(self.accepted, 1)
         cap = ""
         if self.error and self.cfl is not None:
             cap = f"; the Courant cap {self.cfl.cfl:.3g} set the next dt after {self.capped} of them"
@@ -345,7 +344,7 @@ class StepControl:
             cap += f"; balanced at {b.fraction:g} of the spatial error's rate (last {b.rate.last:.3g} s⁻¹, relative)"
         return (
             f"{self.accepted} steps accepted, {self.rejected} rejected; dt smallest {self.dt_smallest:.4g} s, "
-            f"mean {mean:.4g} s, largest {self.dt_largest:.4g} s{cap}"
+            f"mean {self.dt_sum / max(self.accepted, 1):.4g} s, largest {self.dt_largest:.4g} s{cap}"
         )
 
     def state(self) -> dict:

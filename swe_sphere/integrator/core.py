@@ -207,7 +207,8 @@ class ControlledDt:
     step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``).
     ``reached``: the last of ``days`` reached (a driver's blocks end there). It is also how the
     loop keeps and puts back a controlled step (its ``Integrator.rewind``): the state of
-    ``control`` (the step's start is the control's own, its unit's ``start``)."""
+    ``control``, kept here (``keep`` hands the loop nothing; the step's start is the control's
+    own, its unit's ``start``)."""
 
     def __init__(self, control, days, quiet):
         self.control, self.days, self.quiet, self.saved = control, list(days), quiet, None
@@ -222,9 +223,8 @@ class ControlledDt:
         day = next(d for d in self.days if d * DAY > self.control.t)
         return counted(self.control.step_to(unit.x, day, self.quiet(j)), unit.stepper)
 
-    def keep(self, active: list, whole: bool) -> dict:
+    def keep(self, active: list, whole: bool) -> None:
         self.saved = self.control.state()
-        return {}
 
     def put_back(self, active: list, saved: dict) -> None:
         """The control's unit back to the step's start and the control to its state then (after a

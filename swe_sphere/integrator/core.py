@@ -77,17 +77,16 @@ class Stop:
 
 
 class Observer:
-    """What a driver adds around ``Integrator.advance``'s steps; each hook a no-op here."""
+    """What a driver adds around ``Integrator.advance``'s steps; each hook a no-op here, but two
+    each driver's own: ``block_end(b)``, the last step of the block after step b (the state read
+    then: activities due); b: no step more (a controlled run's last day reached,
+    ``ControlledDt.reached``); and where units drop (``Integrator.drop``), ``dropped(step, bad)``:
+    the units (index, unit, first bad node) ``bad`` dropped at ``step``."""
 
     def asked(self, within: bool = False) -> int:
         """A stop asked between blocks, or ``within`` a block between a lone unit's steps (where
         every process steps one unit): the signal's number, 0 for none."""
         return 0
-
-    def block_end(self, b: int) -> int:
-        """The last step of the block after step b (the state read then: activities due); b: no
-        step more (a controlled run's last day reached, ``ControlledDt.reached``)."""
-        return b + 1
 
     def checked(self, b: int, e: int) -> bool:
         """Whether the states of steps b+1..e are checked (False: known good, taken again)."""
@@ -104,9 +103,6 @@ class Observer:
 
     def after(self, step: int, done: int) -> None:
         """``done`` steps to ``step`` found good."""
-
-    def dropped(self, step: int, bad: list) -> None:
-        """Units (index, unit, first bad node) ``bad`` dropped at ``step`` (``Integrator.drop``)."""
 
 
 def trouble_line(model, x, bad: tuple, day: float, of: str = "") -> str:
@@ -198,6 +194,22 @@ class FixedDt:
             stepper.prepare(unit.x)
             unit.stepper = stepper
 
+    def keep(self, active: list, whole: bool) -> dict:
+        """How a fixed-Δt loop keeps the ``active`` units ((index, unit)) at a block's start (its
+        ``Integrator.rewind``): x copied to ``start`` (the last good state) and, where ``whole``
+        (for a block or where members drop), the steppers' ``state()`` returned by index."""
+        for _, u in active:
+            wp.copy(u.start, u.x)
+        return {i: u.stepper.state() for i, u in active} if whole else {}
+
+    def put_back(self, active: list, saved: dict) -> None:
+        """The ``active`` units back to their ``start`` and, where ``saved`` holds it, their
+        stepper's state (``keep``'s)."""
+        for i, u in active:
+            wp.copy(u.x, u.start)
+            if i in saved:
+                u.stepper.restore(saved[i])
+
 
 class ControlledDt:
     """The Δt policy of step control (Oceananigans' ``TimeStepWizard`` with ``aligned_time_step``):
@@ -233,22 +245,6 @@ class ControlledDt:
         self.control.restore(self.saved)
 
 
-class Rewind:
-    """How a block's units are kept at its start and put back: x copied to ``start`` (the last good
-    state) and, for a block or where members drop, the steppers' ``state()``."""
-
-    def keep(self, active: list, whole: bool) -> dict:
-        for _, u in active:
-            wp.copy(u.start, u.x)
-        return {i: u.stepper.state() for i, u in active} if whole else {}
-
-    def put_back(self, active: list, saved: dict) -> None:
-        for i, u in active:
-            wp.copy(u.x, u.start)
-            if i in saved:
-                u.stepper.restore(saved[i])
-
-
 class Integrator:
     """``units`` (``Unit`` s, the members of this process) advanced by ``policy.take(unit, j,
     watch)`` (the Δt policy's step j + 1 of a unit, the state flagged on the device where
@@ -256,8 +252,8 @@ class Integrator:
     holds on any process stepping members of the same run (default: here). ``drop``: a unit bad
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
-    watched. ``rewind``: how a block is kept and put back (``Rewind``; a controlled step's, its
-    ``ControlledDt``; a gradient's sweep, its observer). ``step``: the steps taken;
+    watched. ``rewind``: how a block is kept and put back (None: by its policy, ``FixedDt.keep``
+    or a controlled step's ``ControlledDt.keep``; a gradient's sweep, its observer). ``step``: the steps taken;
     ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
     name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files, put
     back with a block taken again; ``control``: the ``control.StepControl`` of a controlled Δt
@@ -265,7 +261,7 @@ class Integrator:
 
     def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True, rewind=None):
         self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere
-        self.drop, self.lone, self.rewind = drop, lone, rewind or Rewind()
+        self.drop, self.lone, self.rewind = drop, lone, rewind
         self.out: dict[int, int] = {}
         self.step = 0
         # what the loop counts (a driver's ``Ledger`` adds to them; a restart file carries them)
@@ -307,7 +303,7 @@ class Integrator:
         a checked step's bad state, the units are put back."""
         active = [(i, u) for i, u in enumerate(self.units) if i not in self.out]  # all but those dropped
         check = observer.checked(b, e)
-        saved = self.rewind.keep(active, watched and check or self.drop)
+        saved = (self.rewind or self.policy).keep(active, watched and check or self.drop)
         # the counts at the block's start, put back where the block is taken again
         kept = (self.counters["rhs_evals"], dict(self.counters["iterations"])) if watched else None
         t0, cpu0 = time.perf_counter(), time.process_time()
@@ -322,7 +318,7 @@ class Integrator:
         if trouble is not None:
             self.step = b
             if watched or trouble == "abandoned":
-                self.rewind.put_back(active, saved)
+                (self.rewind or self.policy).put_back(active, saved)
             if watched:
                 self.counters["rhs_evals"], self.counters["iterations"] = kept
         return m, trouble, detail
@@ -382,7 +378,7 @@ class Integrator:
         if not self.drop or not self.anywhere(len(bad) < len(active)):
             return "bad", bad
         for i, u, _ in bad:  # back to its last good state, not stepped again
-            self.rewind.put_back([(i, u)], saved)
+            (self.rewind or self.policy).put_back([(i, u)], saved)
             self.out[i] = b + 1
         observer.dropped(b + 1, bad)
         return None, None

@@ -155,7 +155,7 @@ class FixedDt:
         self.step, self.times, self.clock, self.note = step, times, clock, note
 
     @classmethod
-    def fitted(cls, clock: Clock, every: float, what: str, *spans: float, step=graphed_step) -> FixedDt:
+    def fitted(cls, clock: Clock, every: float, what: str, *spans: float) -> FixedDt:
         """The policy of ``clock``'s Δt (a scene's) shortened to the longest that divides ``every``
         (days, the interval a driver was asked for, named ``what``) and ``spans`` (days: the run,
         its output intervals, its activities'; ``Clock.fitted``), its clock's source and ``note``
@@ -169,7 +169,7 @@ class FixedDt:
                 f"that divides it, the run and its output intervals is {fit.dt:g} s, less than half: give a dt, "
                 "or an interval of whole steps"
             )
-        return cls(step, clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to {divide}")
+        return cls(clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to {divide}")
 
     def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
         """Step j + 1 of ``unit``, its state flagged on the device where ``watch``; its ``StepStats``."""

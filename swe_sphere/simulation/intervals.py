@@ -43,7 +43,7 @@ class Intervals:
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
         spans = (s.run_days, *(d for d in outputs if d < s.run_days), *days)
-        policy = FixedDt.fitted(s.clock, every, what, *spans, step=self.run.core.policy.step)
+        policy = FixedDt.fitted(s.clock, every, what, *spans)
         scene = dataclasses.replace(s, dt=policy.clock.dt, notes=(*s.notes, policy.note), dt_source=policy.clock.source)
         return scene, policy.stepper_for(self.run.core.units[0], functools.partial(scene_stepper, scene))
 

@@ -68,9 +68,9 @@ def run_steps(core, observer, describe, until_step: int | None = None, until_day
     ``until_step`` (None: the scene's last, ``observer.run.scene``) under ``observer`` (a
     ``guard.RunObserver``), each step's Δt the integrator's own policy's at a fixed Δt; under its
     ``control`` (an ``integrator.control.StepControl``; ``until_step`` then refused, ValueError) the
-    policy and rewind ``observer.steer``'s (each accepted step a block checked at once, landed on
-    the days the observer's activities are due at and on ``until_day``, default the scene's last)
-    from then on (a controlled run steps by nothing else). Returns why the steps stopped
+    policy ``observer.steer``'s, which keeps and puts back its steps (each accepted step a block
+    checked at once, landed on the days the observer's activities are due at and on ``until_day``,
+    default the scene's last) from then on (a controlled run steps by nothing else). Returns why the steps stopped
     (``Stop``: nothing, a signal, an abandoned step, a blow-up with ``describe(bad)`` its line, or
     the controller's Δt below dt_min); after a controlled run's blow-up, the state and the control
     those of the step before."""
@@ -80,7 +80,7 @@ def run_steps(core, observer, describe, until_step: int | None = None, until_day
     elif until_step is not None:
         raise ValueError("until_step is a fixed dt's: under step control a run goes to its end")
     else:  # the control's Δt policy from now on, also how a step is put back, each step checked at once
-        core.policy = core.rewind = observer.steer(core.control, scene.days if until_day is None else until_day)
+        core.policy = observer.steer(core.control, scene.days if until_day is None else until_day)
         core.lone = True
         try:
             stop = core.advance(sys.maxsize, observer)
@@ -91,7 +91,7 @@ def run_steps(core, observer, describe, until_step: int | None = None, until_day
     if stop.bad is not None:
         stop.blowup = describe(stop.bad)
         if core.control is not None:
-            core.rewind.put_back([], {})
+            core.policy.put_back([], {})
     return stop
 
 

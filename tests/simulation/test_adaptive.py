@@ -401,7 +401,7 @@ def test_a_run_with_tries_launched_ahead_is_bitwise_the_run_without(tmp_path):
     and RHS evaluations. Most steps are tries launched ahead; some were undone (a rejection, a
     new Δt), and none were launched before an output or a callback. The Courant cap's passes
     are those of the run without, most of them queued before the try launched ahead
-    (``StepControl._pass_likely``), and few queued passes go unused."""
+    (``StepControl._cap_idle``), and few queued passes go unused."""
     overrides = {"time.control": "error", "time.rtol": 1e-4, "output.every_days": 0.25}
     scene = load_scene("tc5_mountain", ne=4, days=1.0, stepper="rk43", overrides=overrides)
     scene = dataclasses.replace(scene, dt=5 * scene.dt)

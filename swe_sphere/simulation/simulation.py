@@ -521,7 +521,11 @@ class Simulation:
             observer = RunObserver(*parts, bar, lines, d.drop)
             return run_steps(self.core, observer, d.describe, until_step, until_day)
 
-        during = self._during_run(files, ckp, log)
+        # the run's own activities (the log after the user's), a single run's solver counters read with the check
+        every = self.scene.log_every_steps
+        one = self.ensemble is None
+        more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
+        during = own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
         how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}
         stop = integrate(self.run_state, files, ckp, start, signals, blocks, during, d, first, **how)
         times = {"setup_time": self.setup_time, "compile_time": self._compile[0]}
@@ -706,11 +710,3 @@ class Simulation:
         if output is not None and self.root:
             files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
         return files, ckp, start, courant, first
-
-    def _during_run(self, files: RunFiles, ckp: Checkpointer, log):
-        """The run's own activities while the loop runs (``own_activities``, the log after the
-        user's), a single run's stepper's solver counters read with the bad-state check."""
-        every = self.scene.log_every_steps
-        one = self.ensemble is None
-        more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
-        return own_activities(self.activities, files, ckp, self.stepper if one else None, **more)

@@ -36,14 +36,13 @@ class Intervals:
         step, for ``every`` <= 0, and where that Δt is less than half the present one (an
         interval of odd decimals: give a dt, or an interval of whole steps)."""
         s = self.run.scene
-        if self.run.core.step != 0 or not is_interval(every):
+        if self.run.step != 0 or not is_interval(every):
             raise SceneError(
-                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.run.core.step})"
+                f"dt is fitted to an interval > 0 before the first step (got {every!r} at step {self.run.step})"
             )
         outputs = [s.output_every_days, *(st["every_days"] for st in s.output_streams)]
         days = [a.schedule.days for a in self.activities.values() if getattr(a.schedule, "days", None) is not None]
-        spans = (s.run_days, *(d for d in outputs if d < s.run_days), *days)
-        policy = FixedDt.fitted(s.clock, every, what, *spans)
+        policy = FixedDt.fitted(s.clock, every, what, s.run_days, *(d for d in outputs if d < s.run_days), *days)
         scene = dataclasses.replace(s, dt=policy.clock.dt, notes=(*s.notes, policy.note), dt_source=policy.clock.source)
         return scene, policy.stepper_for(self.run.core.units[0], functools.partial(scene_stepper, scene))
 
@@ -54,9 +53,8 @@ class Intervals:
         in days rescheduled in its steps and the start's diagnostics taken again (their Courant
         numbers)."""
         policy = FixedDt(self.run.core.policy.step, clock=scene.clock)
-        build = functools.partial(scene_stepper, scene)
         for i, unit in enumerate(self.run.core.units):
-            policy.use(unit, stepper if i == 0 else policy.stepper_for(unit, build))
+            policy.use(unit, stepper if i == 0 else policy.stepper_for(unit, functools.partial(scene_stepper, scene)))
         self.run.core.policy, self.run.scene = policy, scene
         for activity in self.activities.values():  # the schedules in days: their steps at the new Δt
             if getattr(activity.schedule, "days", None) is not None:
@@ -66,7 +64,7 @@ class Intervals:
     def steps_in(self, days: float, what: str) -> int:
         """The whole number of steps in ``days`` (``what`` names it in a refusal), Δt first
         fitted to it (``fit_dt``) where Δt is the simulation's own and no step was taken."""
-        if self.own and self.run.core.step == 0 and is_interval(days) and not self.run.scene.clock.is_whole(days):
+        if self.own and self.run.step == 0 and is_interval(days) and not self.run.scene.clock.is_whole(days):
             self.fit_dt(days, what)
         return self.run.scene.clock.steps(days, f"the interval {what}")
 

@@ -116,7 +116,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     with signals, threadpool_limits(limits=1, user_api="blas"):
         try:
             with during, compile_timer(compiling):
-                files.record(run.step, whole=start, final=True, write=not run.step, diagnosed=diagnosed)
+                files.record(whole=start, final=True, write=not run.step, diagnosed=diagnosed)
                 if lines is not None:
                     lines.start(run.time, run.scene.days)
                 # a bar on a terminal only (disable=None), not redrawn into a log or mpiexec's pipe
@@ -124,14 +124,14 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
                 with tqdm(initial=run.step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(bar)
                 if stop.blowup is not None and ends.last_good is not None:  # ``run.step`` is the last good step again
-                    files.end(run.step, ends.last_good, blowup=stop.blowup)
+                    files.end(ends.last_good, blowup=stop.blowup)
                 elif stop.blowup is not None:
                     files.set_attrs(stopped=stop.blowup)
                 elif stop.signum is not None:
                     # the global attributes of a run file stopped by a signal: its name, the step and model day
                     name = signal.Signals(stop.signum).name
-                    files.end(run.step, interrupted=name, interrupted_at_step=run.step, interrupted_at_day=run.time)
-                    ckp.interrupted(run.step, abandoned=stop.abandoned is not None)
+                    files.end(interrupted=name, interrupted_at_step=run.step, interrupted_at_day=run.time)
+                    ckp.interrupted(abandoned=stop.abandoned is not None)
                 drops = ends.drops  # collective
                 files.set_attrs(**({"dropped_members": "; ".join(drops)} if drops else {}))
             files.close()  # under this run's handlers: a signal now waits, and is answered below

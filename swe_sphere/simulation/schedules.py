@@ -92,16 +92,14 @@ class EverySteps:
 class AtDays:
     """Due at the model days in ``days`` (sorted): a run's output and restart times under step
     control (``StepControl``), whose steps land on them; ``due(step, day)`` asks of the day a
-    step landed on (None: a step between them; ``is_due`` passes it)."""
+    step landed on (None: a step between them; ``is_due`` passes it). No ``next_after``: steps do
+    not say when a day falls, and under step control each accepted step is a block landed on
+    ``days`` (``guard.RunObserver.steer``, ``block_end``)."""
 
     days: tuple
 
     def due(self, step: int, day: float | None) -> bool:
         return day is not None and day in self.days
-
-    def next_after(self, step: int) -> None:
-        """None: steps do not say when a day falls (the loop lands on ``days`` itself)."""
-        return None
 
 
 def at_marks(marks, controlled: bool) -> AtSteps | AtDays:

@@ -103,14 +103,14 @@ class RunFiles:
     close = functools.partialmethod(_each, "close")
     abort = functools.partialmethod(_each, "abort")
 
-    def record(self, step: int, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
-        """Diagnose ``step`` (the run's, ``run.step``; state x, default the current one; ``whole`` its gathered
+    def record(self, x=None, whole=None, final: bool = False, write: bool = True, diagnosed=None) -> None:
+        """Diagnose the run's step (``run.step``; state x, default the current one; ``whole`` its gathered
         fields and ``diagnosed`` their ``diagnose`` when the caller has them) and write it
         to the run files whose schedule holds it (``final``: to every one; ``write`` False:
         to none, the diagnostics kept in ``history`` alone). Call on every rank."""
-        run, c, ctl, day = self.run, self.run.counters, self.run.control, self.run.time  # day: the control's under it
-        if whole is None:  # once per output time, on every rank
-            whole = self.diagnostics.gather_fields(x, divergence=self.divergence)
+        run, step, c, ctl, day = self.run, self.run.step, self.run.counters, self.run.control, self.run.time
+        # once per output time, on every rank; day: the control's under it
+        whole = self.diagnostics.gather_fields(x, divergence=self.divergence) if whole is None else whole
         d = self.diagnostics.diagnose(run.seconds(step), x, whole) if diagnosed is None else diagnosed
         d.update(steps=step, day=day, rhs_evals=c["rhs_evals"], wall_time=c["wall_time"], cpu_time=c["cpu_time"])
         if ctl is not None:
@@ -132,13 +132,13 @@ class RunFiles:
                     )
 
     def __call__(self, owner) -> None:
-        self.record(self.run.step)
+        self.record()
 
-    def end(self, step: int, x=None, **attrs) -> None:
-        """Close a run that stops early at ``step`` (the run's; state x, default the current one):
+    def end(self, x=None, **attrs) -> None:
+        """Close a run that stops early at its step (``run.step``; state x, default the current one):
         the step recorded where it is not yet, and the global ``attrs`` set (why it stopped)."""
-        if not is_due(self.schedule, self.run) or any(at != step for at in self.last):  # some file lacks it
-            self.record(step, x, final=True)
+        if not is_due(self.schedule, self.run) or any(at != self.run.step for at in self.last):  # some file lacks it
+            self.record(x, final=True)
         self.set_attrs(**attrs)
 
 
@@ -165,8 +165,8 @@ class Checkpointer:
         if every_days is not None and path is None:
             raise ValueError("a restart interval needs an output or restart file")
 
-    def interrupted(self, step: int, abandoned: bool) -> None:
-        """Save the restart file of a run stopped by a signal at ``step`` (the run's), unless it has
+    def interrupted(self, abandoned: bool) -> None:
+        """Save the restart file of a run stopped by a signal at its step (``run.step``), unless it has
         none, already saved this step, or the step was ``abandoned`` (the stepper's history
         is then half updated)."""
         if self.path is not None and not is_due(self.schedule, self.run) and not abandoned:

@@ -32,14 +32,6 @@ def add_callback(activities: dict, fn: Callable, schedule: EverySteps, name: str
     activities[name] = Callback(fn, schedule)
 
 
-def call_due(activities: dict, run, owner) -> None:
-    """Call each of ``activities`` (in order) due at ``run``'s step (``schedules.is_due``) with ``owner``
-    (the ``Simulation`` whose run it is)."""
-    for activity in list(activities.values()):
-        if is_due(activity.schedule, run):
-            activity(owner)
-
-
 @dataclass
 class Callback:
     """``fn(sim)`` at the steps of ``schedule`` (``Simulation.add_callback``)."""

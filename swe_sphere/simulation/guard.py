@@ -8,8 +8,7 @@ import time
 
 from ..core.constants import DAY
 from ..integrator.core import ControlledDt, Observer
-from .activities import call_due
-from .schedules import AtDays, next_multiple
+from .schedules import AtDays, is_due, next_multiple
 
 
 class RunObserver(Observer):
@@ -69,8 +68,11 @@ class RunObserver(Observer):
             self.signals.in_step = time.perf_counter() if on else None
 
     def after(self, step: int, done: int) -> None:
-        """The activities due (``call_due``), then the progress on ``bar`` and, where given, ``lines``."""
-        call_due(self.activities, self.run, self.caller)
+        """The activities due at the run's step (``schedules.is_due``), each called in order with
+        ``caller``, then the progress on ``bar`` and, where given, ``lines``."""
+        for activity in list(self.activities.values()):
+            if is_due(activity.schedule, self.run):
+                activity(self.caller)
         self.bar.update(done)
         if self.lines is not None:
             self.lines.tick(step, self.run.time)

@@ -20,7 +20,7 @@ from ..core.clock import StepTimes
 from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, StepFailure
 from ..core.mpi import from_root
-from ..integrator.core import FixedDt, Integrator, Observer, Unit, trouble_line
+from ..integrator.core import Integrator, Observer, Unit, trouble_line
 from ..model.shallow_water import ShallowWater
 from .costs import checked, run_cost
 from .disk import DiskTier
@@ -224,13 +224,23 @@ def gradient(
 
 
 class _Sweep(Observer):
-    """A sweep's advance as one block (the integrator's observer and rewind), its states checked
-    where not yet (``verified``: the steps checked so far; a recomputation's are not checked
-    again), put back by loading its start, the state ``x`` it advances, into the stepper's
-    arrays (``pairs(x)``: (array, x's rows)): the sweep holds it, so nothing is kept."""
+    """A sweep's advance as one block (the integrator's Δt policy and its observer): each step
+    at the run's Δt and model time (``times``, a ``core.clock.StepTimes``: step j's (t0_j, Δt_j)
+    and phase j set first), its states checked where not yet (``verified``: the steps checked so
+    far; a recomputation's are not checked again), put back by loading its start, the state
+    ``x`` it advances, into the stepper's arrays (``pairs(x)``: (array, x's rows)): the sweep
+    holds it, so nothing is kept."""
 
-    def __init__(self, pairs):
-        self.pairs, self.x, self.verified = pairs, None, 0
+    def __init__(self, times, pairs):
+        self.times, self.pairs, self.x, self.verified = times, pairs, None, 0
+
+    def take(self, unit: Unit, j: int, watch: bool) -> None:
+        """x(j) to x(j + 1) in the stepper's arrays, watched where not yet checked."""
+        self.times.set(unit.stepper, j)
+        unit.stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's
+        unit.stepper.step(unit.x)
+        if watch and j >= self.verified:
+            unit.model.bad_nodes.watch(unit.x)
 
     def block_end(self, b: int) -> int:
         return sys.maxsize  # the advance's end (``Integrator.advance``'s stop step)
@@ -238,8 +248,8 @@ class _Sweep(Observer):
     def checked(self, b: int, e: int) -> bool:
         return e > self.verified
 
-    def keep(self, active: list, whole: bool) -> dict:
-        return {}
+    def keep(self, active: list, whole: bool) -> None:
+        """Nothing: the sweep holds the block's start (``x``)."""
 
     def put_back(self, active: list, saved: dict) -> None:
         for a, held in self.pairs(self.x):
@@ -259,15 +269,8 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     def pairs(x):  # (the stepper's array, x's rows): x's, then ``carried_arrays``' in their order now
         return [(work, x[X]), *((a, x[3 * i + 3 : 3 * i + 6]) for i, a in enumerate(stepper.carried_arrays()))]
 
-    forward = _Sweep(pairs)  # its steps whose states were checked: a recomputation's are not checked again
-
-    def step(unit, j, watch):  # x(j) to x(j + 1) in the stepper's arrays, watched where not yet checked
-        stepper.step(work)
-        if watch and j >= forward.verified:
-            model.bad_nodes.watch(work)
-
-    # each step at the run's Δt and model time (``clock``), as ``FixedDt`` replays them
-    core = Integrator([Unit(model, stepper, work, work, None)], FixedDt(step, clock), lone=False, rewind=forward)
+    forward = _Sweep(clock, pairs)  # each step at the run's Δt and model time (``clock``)
+    core = Integrator([Unit(model, stepper, work, work, None)], forward, lone=False)
 
     def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once
         core.step, forward.x = k, x

@@ -13,9 +13,10 @@ its model and its stepper, a block of steps at a time under the one bad-state gu
   again while the others go on (an ensemble's ``blow_up="drop"``); else the loop stops there.
 
 Each step's Δt is the loop's Δt policy's (Oceananigans' fixed ``Δt``, ``aligned_time_step`` and
-``TimeStepWizard``), an object with one method, ``take(unit, j, watch)``: ``FixedDt`` (a fixed,
-fitted or replayed Δt) or ``ControlledDt`` (a step control's). What a driver adds around the
-steps is an ``Observer``'s. ``Simulation.run`` and ``advance`` (of one member or many) and the
+``TimeStepWizard``), an object that takes a step, ``take(unit, j, watch)``, and keeps and puts
+back a block's start, ``keep`` and ``put_back``: ``FixedDt`` (a fixed or fitted Δt) or
+``ControlledDt`` (a step control's); a gradient's sweep is its own (a run's Δt replayed). What
+a driver adds around the steps is an ``Observer``'s. ``Simulation.run`` and ``advance`` (of one member or many) and the
 gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
 
 from __future__ import annotations
@@ -146,13 +147,13 @@ def graphed_step(unit: Unit, j: int, watch: bool) -> StepStats:
 class FixedDt:
     """The Δt policy of a fixed Δt: each step at its stepper's Δt, the clock's (a scene's, or one
     fitted to a driver's output times before the first step: ``fitted``), taken by ``step(unit,
-    j, watch)`` (default ``graphed_step``); with ``times`` (a ``core.clock.StepTimes``) a run's
-    Δt and model times replayed, step k's (t0_k, Δt_k) and phase k set first (the gradient's
-    sweeps: a fixed run's, or a controlled run's history). ``clock`` the ``core.clock.Clock`` a
-    fitted policy steps at and ``note`` what fitting it did (None: the stepper's Δt as built)."""
+    j, watch)`` (default ``graphed_step``), which is its ``take``: step j + 1 of ``unit``, its
+    state flagged on the device where ``watch``; its ``StepStats``. ``clock`` the
+    ``core.clock.Clock`` a fitted policy steps at and ``note`` what fitting it did (None: the
+    stepper's Δt as built)."""
 
-    def __init__(self, step=graphed_step, times=None, clock=None, note=None):
-        self.step, self.times, self.clock, self.note = step, times, clock, note
+    def __init__(self, step=graphed_step, clock=None, note=None):
+        self.step, self.take, self.clock, self.note = step, step, clock, note
 
     @classmethod
     def fitted(cls, clock: Clock, every: float, what: str, *spans: float) -> FixedDt:
@@ -171,13 +172,6 @@ class FixedDt:
             )
         return cls(clock=fit, note=f"dt shortened from {clock.dt:g} s to {fit.dt:g} s to {divide}")
 
-    def take(self, unit: Unit, j: int, watch: bool) -> StepStats:
-        """Step j + 1 of ``unit``, its state flagged on the device where ``watch``; its ``StepStats``."""
-        if self.times is not None:
-            self.times.set(unit.stepper, j)
-            unit.stepper.set_phase(j)  # its clock, t0_j + (j + c)·Δt_j at each stage as the run's
-        return self.step(unit, j, watch)
-
     def stepper_for(self, unit: Unit, build):
         """The stepper ``unit`` steps at this policy's Δt with, nothing written: its own where its Δt
         changes in place (``variable_dt``; set by ``use``), else ``build(unit.model)`` (Δt folded
@@ -195,9 +189,9 @@ class FixedDt:
             unit.stepper = stepper
 
     def keep(self, active: list, whole: bool) -> dict:
-        """How a fixed-Δt loop keeps the ``active`` units ((index, unit)) at a block's start (its
-        ``Integrator.rewind``): x copied to ``start`` (the last good state) and, where ``whole``
-        (for a block or where members drop), the steppers' ``state()`` returned by index."""
+        """How a fixed-Δt loop keeps the ``active`` units ((index, unit)) at a block's start: x
+        copied to ``start`` (the last good state) and, where ``whole`` (for a block or where
+        members drop), the steppers' ``state()`` returned by index."""
         for _, u in active:
             wp.copy(u.start, u.x)
         return {i: u.stepper.state() for i, u in active} if whole else {}
@@ -218,7 +212,7 @@ class ControlledDt:
     the time it reached, landed on it exactly; ``quiet(j)`` whether nothing reads the state after
     step j + 1, so that the next try may be launched ahead (``StepControl.lookahead``).
     ``reached``: the last of ``days`` reached (a driver's blocks end there). It is also how the
-    loop keeps and puts back a controlled step (its ``Integrator.rewind``): the state of
+    loop keeps and puts back a controlled step (``keep``, ``put_back``): the state of
     ``control``, kept here (``keep`` hands the loop nothing; the step's start is the control's
     own, its unit's ``start``)."""
 
@@ -252,16 +246,16 @@ class Integrator:
     holds on any process stepping members of the same run (default: here). ``drop``: a unit bad
     at a checked step is dropped and the others go on (``out``: {unit index: step}). ``lone``: a
     block of one step is checked at once (a run's first step, to time it alone) rather than
-    watched. ``rewind``: how a block is kept and put back (None: by its policy, ``FixedDt.keep``
-    or a controlled step's ``ControlledDt.keep``; a gradient's sweep, its observer). ``step``: the steps taken;
+    watched. A block is kept and put back by its policy (``keep``, ``put_back``: ``FixedDt``'s,
+    a controlled step's ``ControlledDt``'s, a gradient's sweep's own). ``step``: the steps taken;
     ``counters``: their RHS evaluations, wall and CPU seconds and solver iterations (by
     name), kept by a driver's ledger (``simulation.summary.Ledger``) and its restart files, put
     back with a block taken again; ``control``: the ``control.StepControl`` of a controlled Δt
     (None: fixed), which vouches for its steps' states (``StepControl.vouched``)."""
 
-    def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True, rewind=None):
+    def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True):
         self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere
-        self.drop, self.lone, self.rewind = drop, lone, rewind
+        self.drop, self.lone = drop, lone
         self.out: dict[int, int] = {}
         self.step = 0
         # what the loop counts (a driver's ``Ledger`` adds to them; a restart file carries them)
@@ -303,7 +297,7 @@ class Integrator:
         a checked step's bad state, the units are put back."""
         active = [(i, u) for i, u in enumerate(self.units) if i not in self.out]  # all but those dropped
         check = observer.checked(b, e)
-        saved = (self.rewind or self.policy).keep(active, watched and check or self.drop)
+        saved = self.policy.keep(active, watched and check or self.drop)
         # the counts at the block's start, put back where the block is taken again
         kept = (self.counters["rhs_evals"], dict(self.counters["iterations"])) if watched else None
         t0, cpu0 = time.perf_counter(), time.process_time()
@@ -318,7 +312,7 @@ class Integrator:
         if trouble is not None:
             self.step = b
             if watched or trouble == "abandoned":
-                (self.rewind or self.policy).put_back(active, saved)
+                self.policy.put_back(active, saved)
             if watched:
                 self.counters["rhs_evals"], self.counters["iterations"] = kept
         return m, trouble, detail
@@ -378,7 +372,7 @@ class Integrator:
         if not self.drop or not self.anywhere(len(bad) < len(active)):
             return "bad", bad
         for i, u, _ in bad:  # back to its last good state, not stepped again
-            (self.rewind or self.policy).put_back([(i, u)], saved)
+            self.policy.put_back([(i, u)], saved)
             self.out[i] = b + 1
         observer.dropped(b + 1, bad)
         return None, None

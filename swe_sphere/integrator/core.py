@@ -371,8 +371,7 @@ class Integrator:
             return None, None
         if not self.drop or not self.anywhere(len(bad) < len(active)):
             return "bad", bad
-        for i, u, _ in bad:  # back to its last good state, not stepped again
-            self.policy.put_back([(i, u)], saved)
-            self.out[i] = b + 1
+        self.policy.put_back([(i, u) for i, u, _ in bad], saved)  # back to their last good state, not stepped again
+        self.out |= {i: b + 1 for i, _, _ in bad}
         observer.dropped(b + 1, bad)
         return None, None

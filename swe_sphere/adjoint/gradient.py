@@ -272,7 +272,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
     forward = _Sweep(clock, pairs)  # each step at the run's Δt and model time (``clock``)
     core = Integrator([Unit(model, stepper, work, work, None)], forward, lone=False)
 
-    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator: one block, checked once
+    def advance(x, k, m=1):  # x = x(k) to x(k + m) in place by the integrator (returned): one block, checked once
         core.step, forward.x = k, x
         forward.put_back([], {})  # the stepper's arrays from x's rows
         stop = core.advance(k + m, forward)
@@ -285,6 +285,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
         forward.verified = max(forward.verified, k + m)
         for a, held in pairs(x):
             wp.copy(held, a)
+        return x
 
     mu = wp.zeros((rows, topo.N), dtype=f64, device=topo.device)
     found, observed = {"costs": {}}, set(cost.at_steps)
@@ -307,9 +308,7 @@ def _reverse_run(model, stepper, adjoint, clock, work, steps, cost, snapshots, d
 
     def reverse(x, k):
         if "final" not in found:  # in memory alone, x(n) is one step on from the first reversed
-            final = wp.clone(x)
-            advance(final, k)
-            finish(final)
+            finish(advance(wp.clone(x), k))
         clock.set(adjoint, k)
         adjoint.reverse(x, mu, k)
         if k in observed:  # μ(k) += R Q λ_k, x(k) at hand

@@ -16,8 +16,9 @@ Each step's Δt is the loop's Δt policy's (Oceananigans' fixed ``Δt``, ``align
 ``TimeStepWizard``), an object that takes a step, ``take(unit, j, watch)``, and keeps and puts
 back a block's start, ``keep`` and ``put_back``: ``FixedDt`` (a fixed or fitted Δt) or
 ``ControlledDt`` (a step control's); a gradient's sweep is its own (a run's Δt replayed). What
-a driver adds around the steps is an ``Observer``'s. ``Simulation.run`` and ``advance`` (of one member or many) and the
-gradient's sweeps (``adjoint.gradient``) all advance through ``Integrator.advance``."""
+a driver adds around the steps is an ``Observer``'s. ``Simulation.run`` and ``advance`` (of one
+member or many) and the gradient's sweeps (``adjoint.gradient``) all advance through
+``Integrator.advance``."""
 
 from __future__ import annotations
 

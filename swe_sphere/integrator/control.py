@@ -315,7 +315,8 @@ class StepControl:
             cap = self.cfl.propose(dt, numbers)
             rate = self.cfl.courant(numbers) / dt  # the Courant number a second of Δt
             self._cap_seconds, self._since_pass = (self.cfl.cfl / rate if rate > 0 else math.inf), 0
-            self.capped += self.error and cap < proposal
+            if self.error and cap < proposal:
+                self.capped += 1
             proposal = capped(proposal, cap) if self.error else cap
             self.checked = self.checked or not bad
         return ok, proposal, err

@@ -90,32 +90,23 @@ def own_units(scene, case, own, grid: CubedSphere, starts, backend, threads: int
     return units, None, units[0].model
 
 
-def stepper_state(units: list, layout: str, held) -> dict:
-    """The stepper state of a rank's ``units`` (its members ``held``) as a restart file keeps it:
-    the shared stepper's; in turn, the members' arrays (3, n) side by side (a member without one
-    of them zeros there) and each member's scalars under ``member<k>_`` (k its index)."""
-    if layout == "shared":
-        return units[0].stepper.state()
-    states = [u.stepper.state() for u in units]
-    arrays = sorted({k for st in states for k, v in st.items() if isinstance(v, np.ndarray)})
-    out = {k: np.concatenate([st.get(k, np.zeros((3, units[0].model.N))) for st in states], axis=-1) for k in arrays}
-    return out | {f"member{k}_{key}": v for k, st in zip(held, states) for key, v in st.items() if key not in arrays}
-
-
-def on_rank_zero(comm, x: np.ndarray, state: dict) -> tuple:
-    """(x, state) of every rank's members (``stepper_state``'s arrays side by side in member
-    order, every rank's scalars) on rank 0 of ``comm``; (None, None) on the others (collective)."""
-    parts = comm.gather((x, state), root=0)
-    if comm.rank != 0:
-        return None, None
-    arrays = sorted({k for _, part in parts for k, v in part.items() if isinstance(v, np.ndarray)})
-    scalars = {k: v for _, part in parts for k, v in part.items() if k not in arrays}
-    side = {k: np.concatenate([part.get(k, np.zeros_like(rows)) for rows, part in parts], axis=-1) for k in arrays}
-    return np.concatenate([rows for rows, _ in parts], axis=-1), scalars | side
+def restart_state(parts: list, layout: str) -> tuple:
+    """(x, stepper state) of a run's members as a restart file keeps them, from ``parts``, (x (3, its
+    members·n), ``Stepper.state()``) of every unit over the ranks in member order: the units' x side by
+    side; the shared stepper's state (its arrays side by side over the ranks' units), or in turn the
+    members' arrays (3, n) side by side (a member without one of them zeros there) and member k's
+    scalars under ``member<k>_``."""
+    if layout == "shared" and len(parts) == 1:
+        return parts[0]
+    arrays = sorted({k for _, st in parts for k, v in st.items() if isinstance(v, np.ndarray)})
+    side = {k: np.concatenate([st.get(k, np.zeros_like(x)) for x, st in parts], axis=-1) for k in arrays}
+    prefix = "" if layout == "shared" else "member{}_"  # in turn, the members' scalars named by member
+    scalars = {prefix.format(j) + k: v for j, (_, st) in enumerate(parts) for k, v in st.items() if k not in arrays}
+    return np.concatenate([x for x, _ in parts], axis=-1), side | scalars
 
 
 def held_state(state: dict, nodes, prefix: str | None) -> dict:
-    """A unit's stepper state from a restart file's ``state`` (``stepper_state``): its members'
+    """A unit's stepper state from a restart file's ``state`` (``restart_state``): its members'
     columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
     ``prefix``, without it."""
     own = state if prefix is None else {k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}

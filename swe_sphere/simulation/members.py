@@ -121,6 +121,12 @@ class Members:
         """``everyone`` of the held members' figures ``each`` (dicts), a dropped member's NaN (collective)."""
         return self.everyone(dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each))
 
+    def on_root(self, local: list) -> list | None:
+        """Every rank's ``local`` (an entry a held member or unit) in member order on rank 0, None on the
+        others (collective)."""
+        parts = [local] if self.comm is None else self.comm.gather(local, root=0)
+        return None if parts is None else [e for part in parts for e in part]
+
     def bcast(self, value):
         """Rank 0's ``value`` on every rank (collective)."""
         return value if self.comm is None else self.comm.bcast(value, root=0)
@@ -166,10 +172,10 @@ class Members:
         div = self.each(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
         held = [np.stack([*x[k], zeta[k], *(() if div is None else (div[k],))]) for k in range(self.held.size)]
         shown = [np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)]
-        each = shown if self.comm is None else self.comm.gather(shown, root=0)
-        if not self.root:
+        each = self.on_root(shown)
+        if each is None:
             return MemberFields(None, None, None, None, held=held)
-        each = np.stack(each if self.comm is None else [m for part in each for m in part])  # (N, rows, n)
+        each = np.stack(each)  # (N, rows, n)
         return MemberFields(*(each[:, r] for r in range(4)), None if div is None else each[:, 4], held=held)
 
     def diagnose(self, t: float, x=None, whole: MemberFields | None = None) -> dict:
@@ -265,13 +271,11 @@ class Members:
     def restart_parts(self) -> tuple | None:
         """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
         file, on rank 0 (None on the others; collective): the members' arrays side by side."""
-        x = np.concatenate([u.x.numpy() for u in self.units], axis=-1)  # the members' columns side by side
-        state = units.stepper_state(self.units, self.layout, self.held)
         policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
-        if self.comm is not None:  # the ranks' members side by side, in member order; every rank's scalars
-            x, state = units.on_rank_zero(self.comm, x, state)
-            if not self.root:
-                return None
+        parts = self.on_root([(u.x.numpy(), u.stepper.state()) for u in self.units])  # every unit, member order
+        if parts is None:
+            return None
+        x, state = units.restart_state(parts, self.layout)
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
         return x, state, keep, MemberGrid(self.grid, self.members)
 

@@ -235,8 +235,7 @@ class Members:
             raise StepFailure(detail)
         self.run.core.step = step
         day, bad = self.run.time, self.units[0].model.bad_nodes.mask(self.states())
-        dropped = self.dropped
-        members = [int(k) for k in np.flatnonzero(bad.any(axis=1)) if k not in dropped]
+        members = [int(k) for k in np.setdiff1d(np.flatnonzero(bad.any(axis=1)), list(self.dropped))]  # but dropped
         where, last = self.place(np.argmax(bad[members[0]])), "; none left" if self.blow_up == "drop" else ""
         return (
             f"member{'s' if len(members) > 1 else ''} {', '.join(map(str, members))} of {self.members} blew up at "

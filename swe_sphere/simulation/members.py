@@ -171,12 +171,10 @@ class Members:
         x, zeta = self.each(lambda u: u.x.numpy()), self.each(lambda u: u.model.operators.vorticity(u.x))
         div = self.each(lambda u: u.model.operators.wind_divergence(u.x)) if divergence else None
         held = [np.stack([*x[k], zeta[k], *(() if div is None else (div[k],))]) for k in range(self.held.size)]
-        shown = [np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)]
-        each = self.on_root(shown)
-        if each is None:
-            return MemberFields(None, None, None, None, held=held)
-        each = np.stack(each)  # (N, rows, n)
-        return MemberFields(*(each[:, r] for r in range(4)), None if div is None else each[:, 4], held=held)
+        each = self.on_root([np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)])
+        # rank 0's (N, rows, n) as the rows u, v, h, vorticity[, divergence] by member; None on the others
+        rows = [None] * 4 if each is None else np.stack(each).swapaxes(0, 1)
+        return MemberFields(*rows, held=held)
 
     def diagnose(self, t: float, x=None, whole: MemberFields | None = None) -> dict:
         """Each member's mass, total energy, potential enstrophy (``invariants``) and errors at

@@ -154,7 +154,7 @@ class FixedDt:
     stepper's Δt as built)."""
 
     def __init__(self, step=graphed_step, clock=None, note=None):
-        self.step, self.take, self.clock, self.note = step, step, clock, note
+        self.take, self.clock, self.note = step, clock, note
 
     @classmethod
     def fitted(cls, clock: Clock, every: float, what: str, *spans: float) -> FixedDt:

@@ -52,7 +52,7 @@ class Intervals:
         ``stepper``, every other unit's its own or one built anew alike; the activities scheduled
         in days rescheduled in its steps and the start's diagnostics taken again (their Courant
         numbers)."""
-        policy = FixedDt(self.run.core.policy.step, clock=scene.clock)
+        policy = FixedDt(self.run.core.policy.take, clock=scene.clock)
         for i, unit in enumerate(self.run.core.units):
             policy.use(unit, stepper if i == 0 else policy.stepper_for(unit, functools.partial(scene_stepper, scene)))
         self.run.core.policy, self.run.scene = policy, scene

@@ -1,12 +1,17 @@
-"""A benchmark's latest figures as a file: ``benchmarks/results/<script>.json``, written by every
-script under benchmarks/ at its end through :func:`recorded`, with what a figure needs to be
-read later beside it (the machine's CPU model and cores, the commit and whether the tree
-differed from it, the UTC date, the load average at the start and the end, the command line).
-The figures are what the script printed, line by line, and whatever named figures it adds to
-the dict it is given; benchmarks/README.md quotes them, and git keeps the earlier ones.
+"""What the benchmark scripts share: the results file and the path to one another.
 
-Imported as a sibling module (``from results import recorded``): a script run as
-``python benchmarks/NAME.py`` has benchmarks/ first on its path."""
+A benchmark's latest figures are a file, ``benchmarks/results/<script>/<stem>.json`` (a folder per
+script; ``stem`` the script's name unless it names a variant), written at the script's end through
+:func:`recorded`, with what a figure needs to be read later beside it (the machine's CPU model and
+cores, the commit and whether the tree differed from it, the UTC date, the load average at the
+start and the end, the command line). The figures are what the script printed, line by line, and
+whatever named figures it adds to the dict it is given; benchmarks/README.md's tables are generated
+from them (``python benchmarks/tables.py``), and git keeps the earlier ones.
+
+The scripts live in rooms by subject (peers/, studies/, gpu/, micro/, archive/, and folders below
+them); each puts benchmarks/ first on its path and imports this module, which puts every room on
+the path after it, so that a script imports another's helper by its name wherever either lives
+(script names are unique across the rooms: tests/test_benchmark_inputs.py checks it)."""
 
 from __future__ import annotations
 
@@ -24,6 +29,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
+ROOMS = sorted({p.parent for p in HERE.glob("*/**/*.py")})
+sys.path[1:1] = [str(room) for room in ROOMS if str(room) not in sys.path]
 
 
 def one_line(kind, err, tb) -> None:
@@ -106,8 +113,8 @@ class _Tee(io.TextIOBase):
 @contextlib.contextmanager
 def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
     """Run the block with its printed lines kept; on a normal exit write them, and the named
-    figures the block put in the yielded dict, to ``results/<stem>.json`` (default the script's
-    stem; the folder made if absent; the file replaced). ``script``: the script's path
+    figures the block put in the yielded dict, to ``results/<script>/<stem>.json`` (default
+    the script's stem; the folders made if absent; the file replaced). ``script``: the script's path
     (``__file__``). Nothing is written when the block raises (a refused option, an interrupted
     run)."""
     figures: dict = {}
@@ -118,7 +125,7 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
         yield figures
     record = {
         "script": Path(script).name,
-        "command": " ".join(["python", f"benchmarks/{Path(script).name}", *sys.argv[1:]]),
+        "command": " ".join(["python", str(Path(script).resolve().relative_to(HERE.parent)), *sys.argv[1:]]),
         "date": started.isoformat(timespec="seconds"),
         "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
         **commit(),
@@ -126,8 +133,8 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
         "figures": figures,
         "printed": tee.kept.getvalue().splitlines(),
     }
-    RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / f"{stem or Path(script).stem}.json"
+    path = RESULTS / Path(script).stem / f"{stem or Path(script).stem}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
     # a stem given as a path (``--results /tmp/x``) is written there: said as it was written, not refused after the run
     shown = path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path

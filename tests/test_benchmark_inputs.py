@@ -14,23 +14,36 @@ import pytest
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
+def written(folder: Path) -> dict:
+    """Every file under ``folder`` (a folder of results per script) with its modification time."""
+    return {p: p.stat().st_mtime_ns for p in folder.rglob("*") if p.is_file()}
+
+
 @pytest.mark.parametrize(
     "script, args, says",
     [
-        ("step_cost.py", ["--ne", "-3"], "step_cost.py: error: ne must be an integer >= 1 (got -3)"),
-        ("gradient_cost.py", ["--ne", "2", "--steps", "-2"], "gradient_cost.py: error: --steps must be >= 1"),
-        ("ensemble_cost.py", ["--steps", "0"], "ensemble_cost.py: error: argument --steps: must be > 0 (got 0)"),
-        ("kernel_roofline.py", ["--rounds", "0"], "kernel_roofline.py: error: argument --rounds: must be > 0 (got 0)"),
-        ("across_elements.py", ["--case", "9,2,4"], "across_elements.py: error: argument --case: --case 9,2,4: np 2-8"),
+        ("micro/step/step_cost.py", ["--ne", "-3"], "step_cost.py: error: ne must be an integer >= 1 (got -3)"),
+        ("micro/gradient_cost.py", ["--ne", "2", "--steps", "-2"], "gradient_cost.py: error: --steps must be >= 1"),
+        ("micro/ensemble_cost.py", ["--steps", "0"], "ensemble_cost.py: error: argument --steps: must be > 0 (got 0)"),
         (
-            "hyperviscosity_every.py",
+            "micro/step/kernel_roofline.py",
+            ["--rounds", "0"],
+            "kernel_roofline.py: error: argument --rounds: must be > 0 (got 0)",
+        ),
+        (
+            "archive/across_elements.py",
+            ["--case", "9,2,4"],
+            "across_elements.py: error: argument --case: --case 9,2,4: np 2-8",
+        ),
+        (
+            "micro/step/hyperviscosity_every.py",
             ["--scene", "tc2_steady", "--ne", "2"],
             "hyperviscosity_every.py: error: --scene tc2_steady: its terms have no hyperviscosity",
         ),
     ],
 )
 def test_a_bad_input_is_one_line_and_exit_2(tmp_path, script, args, says):
-    results = {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()}
+    results = written(BENCHMARKS / "results")
     env = {**os.environ, "OMP_NUM_THREADS": "1", "SWE_SPHERE_THREADS": "1"}
     done = subprocess.run(
         [sys.executable, str(BENCHMARKS / script), *args], cwd=tmp_path, env=env, capture_output=True, text=True
@@ -38,11 +51,11 @@ def test_a_bad_input_is_one_line_and_exit_2(tmp_path, script, args, says):
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines()[-1].startswith(says), done.stderr
     assert "Traceback" not in done.stderr
-    assert {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()} == results
+    assert written(BENCHMARKS / "results") == results
 
 
 def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
-    """``benchmarks/gpu_session.sh card`` (issue 114 item 7: float32 against float64, first on a lent
+    """``benchmarks/gpu/gpu_session.sh card`` (issue 114 item 7: float32 against float64, first on a lent
     card) as a session checks it here: ``DEVICE=cpu NE_SMALL=1``, its ensemble item and an unknown
     one. The item's two precisions time the same steps (the float32 run's h within round-off of
     float32 of the float64 one's, not the same), the summary's table and figures under $OUT beside
@@ -51,7 +64,7 @@ def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
     import json
     import tarfile
 
-    results = {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()}
+    results = written(BENCHMARKS / "results")
     root = str(BENCHMARKS.parent)
     env = {
         **os.environ,
@@ -65,7 +78,11 @@ def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
         "CARD": "members bogus",
     }
     done = subprocess.run(
-        ["bash", str(BENCHMARKS / "gpu_session.sh"), "card"], cwd=tmp_path, env=env, capture_output=True, text=True
+        ["bash", str(BENCHMARKS / "gpu" / "gpu_session.sh"), "card"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
     )
     assert done.returncode == 1, done.stdout + done.stderr
     assert "== card: unknown item 'bogus'" in done.stdout
@@ -79,4 +96,4 @@ def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
     with tarfile.open(tmp_path / "card.tgz") as bundle:
         assert {"card/precision_members.json", "card/session.log"} <= set(bundle.getnames())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["card.json", "card.md", "card.tgz", "session.log"]
-    assert {p: p.stat().st_mtime_ns for p in (BENCHMARKS / "results").iterdir()} == results
+    assert written(BENCHMARKS / "results") == results

@@ -46,7 +46,7 @@ from ..core.runtime import init_warp
 from ..grid.cubed_sphere import CubedSphere, lat_lon
 from ..mesh.mesh import Mesh
 from .dual_solve import amg_preconditioner, small_pages
-from .ugrid import subcell_quads, write_topology
+from .ugrid import NOT_A_FIELD, subcell_quads, write_topology
 
 MESH = "mesh_dual"
 CONNECTIVITY = "dual_face_nodes"
@@ -534,7 +534,7 @@ def write_dual_mesh(ds, grid: CubedSphere) -> float | None:
         var = ds.createVariable(name, "f8", (NODE_DIM,), zlib=True, shuffle=True)
         # no standard_name and plain degrees (not degrees_north/east): lat/lon stay the file's one
         # latitude and longitude for cf_xarray (``ds.cf["latitude"]``), with decode_coords="all" too
-        var.setncatts(dict(units="degrees", long_name=f"{what} of the control volumes' corners"))
+        var.setncatts(dict(units="degrees", long_name=f"{what} of the control volumes' corners", **NOT_A_FIELD))
         var[:] = values
     blat, blon = np.degrees(lat_lon(verts[_padded(corners)]))
     lon = ds["lon"][:][:, None]

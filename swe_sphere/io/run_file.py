@@ -28,7 +28,7 @@ from .dual import MESH as DUAL_MESH
 from .dual import write_dual_mesh
 from .output_files import ExclusiveFile, release_held_locks
 from .ugrid import MESH as SUBCELL_MESH
-from .ugrid import write_mesh
+from .ugrid import NOT_A_FIELD, write_mesh
 
 CELLS_NOTE_SECONDS = 1.0  # a cells build below this is less than a run's set-up (Warp's start alone) and goes unsaid
 FIELDS = {
@@ -411,13 +411,14 @@ def write_element_mesh(ds, mesh: Mesh) -> None:
     ds.createDimension("xyz", 3)
     ds.createDimension("corner", 4)
     xyz = ds.createVariable(ELEMENT_NODES, "f8", ("element_mesh_node", "xyz"))
-    xyz.setncatts(dict(long_name=f"nodes of the elements' mesh {mesh.name} (unit vectors)", units="1"))
+    xyz.setncatts(dict(long_name=f"nodes of the elements' mesh {mesh.name} (unit vectors)", units="1", **NOT_A_FIELD))
     xyz[:] = mesh.coords
     corners = ds.createVariable(ELEMENT_CORNERS, "i4", ("element_mesh_elem", "corner"))
     corners.setncatts(
         dict(
             long_name="each element's corner nodes (0-based rows of element_mesh_node_xyz), counter-clockwise",
             units="1",
+            **NOT_A_FIELD,
         )
     )
     corners[:] = mesh.quads

@@ -19,6 +19,10 @@ from ..grid.cubed_sphere import CubedSphere
 MESH = "mesh_topology"
 CONNECTIVITY = "subcell_face_nodes"  # not uxarray's own name for the variable it reads (it renames to it)
 FACE_DIM, MAX_DIM = "nface", "nmax_face"
+# CDI's (CDO's netCDF reader's) mark of a variable that is no field: without it CDO takes the mesh's
+# integer tables and vertex coordinates for fields on grids of their own ("generic"), the first of which
+# ``cdo gridarea`` measures and ``cdo remapcon`` refuses ("Unsupported generic coordinates")
+NOT_A_FIELD = {"cdi": "ignore"}
 
 
 def subcell_quads(grid: CubedSphere) -> np.ndarray:
@@ -74,7 +78,7 @@ def write_topology(
     conn = ds.createVariable(
         connectivity, "i4", dims, fill_value=np.int32(-1) if padded else False, zlib=True
     )  # 25× smaller
-    conn.setncatts(dict(cf_role="face_node_connectivity", long_name=corners, start_index=np.int32(0)))
+    conn.setncatts(dict(cf_role="face_node_connectivity", long_name=corners, start_index=np.int32(0), **NOT_A_FIELD))
     conn[:] = faces
 
 

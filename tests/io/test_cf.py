@@ -15,7 +15,7 @@ from swe_sphere.cli import main
 from swe_sphere.core.constants import DAY
 from swe_sphere.studies import stability
 
-from cf_checks import cdo, ioos_cf_errors, ncas_cf_errors, needs_cdo, ugrid_roles
+from cf_checks import cdo, ioos_cf_errors, ncas_cf_errors, ugrid_roles
 from helpers import TINY, without_sweep_figures
 
 SPATIAL = ("run", "restart", "latlon")  # the files with fields on the sphere
@@ -84,7 +84,6 @@ def test_stability_nc_is_classic_cf(files):
         assert math.isnan(float(table.dt_stable.sel(row=("galewsky", "leapfrog"))))
 
 
-@needs_cdo
 @pytest.mark.parametrize(
     "which,names",
     [

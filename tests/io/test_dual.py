@@ -9,8 +9,6 @@ import ctypes
 import dataclasses
 import json
 import math
-import shutil
-import subprocess
 import sys
 from collections import Counter
 
@@ -44,6 +42,7 @@ from swe_sphere.mesh.mesh import read_exodus
 from swe_sphere.mesh.records import from_json, mesh_of
 from swe_sphere.mesh.schmidt import schmidt_cube
 
+from cf_checks import cdo
 from helpers import cli_one_line
 from meshes import MOUNTAIN
 
@@ -433,26 +432,47 @@ def test_uxarray_draws_the_cells(tc5_ne4):
     assert 0.9 * ncol <= len(pc.get_paths()) <= ncol  # it leaves out the few cells it splits at the antimeridian
 
 
-def cdo(*args) -> str:
-    return subprocess.run(["cdo", "-s", *map(str, args)], check=True, capture_output=True, text=True).stdout
+@pytest.fixture(scope="module")
+def members_file(tmp_path_factory):
+    """``swe-sphere run tc5_mountain --members 2`` at ne = 2 np = 4, 6 hours: fields (time, member, ncol)."""
+    out = tmp_path_factory.mktemp("dual_members") / "members.nc"
+    args = ["run", "tc5_mountain", "--ne", "2", "--np", "4", "--days", "0.25", "--device", "cpu", "--no-progress"]
+    assert main([*args, "--members", "2", "--perturbation", "1", "--output", str(out)]) == 0
+    return out
 
 
-@pytest.mark.skipif(shutil.which("cdo") is None, reason="CDO is not installed (apt-get install cdo)")
-def test_cdo_fldmean_and_remapcon_of_the_native_file(run_file, tmp_path):
-    # CDO reads the cells from lon_bnds/lat_bnds: its cell areas are spheremp in its own Earth radius
-    path = run_file[0]
-    cdo("gridarea", path, tmp_path / "area.nc")
+@pytest.fixture(params=["cube", "refined", "stretched", "members"])
+def cdo_file(request, tc5_ne4, tc2_meshes, members_file):
+    """A run file as written: the ne4 cube's TC5, the two meshes' TC2, an ensemble's TC5."""
+    return {"cube": tc5_ne4, "members": members_file, **tc2_meshes}[request.param]
+
+
+def checked_cdo(*args) -> None:
+    done = cdo(*args)
+    assert done.returncode == 0, done.stderr
+
+
+def test_cdo_measures_averages_and_remaps_the_file_as_written(cdo_file, tmp_path):
+    """``cdo gridarea``, ``cdo fldmean`` and ``cdo remapcon,r360x180`` on the whole file, no variable
+    selected first: CDO takes the cells from lon_bnds/lat_bnds, and the meshes' connectivity and vertex
+    tables (kept for uxarray) are no fields of their own grids to it (it aborted on them)."""
+    path = cdo_file
+    checked_cdo("gridarea", path, tmp_path / "area.nc")
     with xr.open_dataset(tmp_path / "area.nc") as a, xr.open_dataset(path, decode_times=False) as ds:
-        ratio = a.cell_area.values / ds.area.values
+        ratio = a.cell_area.values / ds.area.values  # spheremp in CDO's own Earth radius
     assert np.ptp(ratio) < 1e-12 * ratio.mean()
-    mine = file_mean(path)
-    means = np.array(cdo("outputf,%.17g", "-fldmean", "-selname,h", path).split(), dtype=float)
-    assert np.allclose(means, mine, rtol=1e-13, atol=0)
-    # conservative remapping to a 5° grid keeps the mean: CDO's own remap weights move it by 2.8e-5 (TC5),
-    # 1.35e-4 (TC2: on the ne4 cube, the refined mesh and the stretched cube alike)
-    cdo("remapcon,r72x36", "-selname,h", path, tmp_path / "ll.nc")
-    remapped = np.array(cdo("outputf,%.17g", "-fldmean", tmp_path / "ll.nc").split(), dtype=float)
-    assert np.allclose(remapped, mine, rtol=2e-4, atol=0)
+    mine = file_mean(path).ravel()  # (time,) or (time, member), as CDO's records
+    checked_cdo("fldmean", path, tmp_path / "mean.nc")
+    with xr.open_dataset(tmp_path / "mean.nc", decode_times=False) as ds:
+        assert np.allclose(ds.h.values.ravel(), mine, rtol=1e-13, atol=0)
+    # conservative remapping to a 1° grid keeps the mean: CDO's own remap weights move it by 2.8e-5 (TC5),
+    # 1.35e-4 (TC2 on the refined mesh and the stretched cube)
+    checked_cdo("remapcon,r360x180", path, tmp_path / "ll.nc")
+    checked_cdo("fldmean", "-selname,h", tmp_path / "ll.nc", tmp_path / "ll_mean.nc")
+    with xr.open_dataset(tmp_path / "ll.nc", decode_times=False) as ll:
+        assert (ll.sizes["lat"], ll.sizes["lon"]) == (180, 360) and np.isfinite(ll.h.values).all()
+    with xr.open_dataset(tmp_path / "ll_mean.nc", decode_times=False) as ds:
+        assert np.allclose(ds.h.values.ravel(), mine, rtol=2e-4, atol=0)
 
 
 @pytest.mark.parametrize("np_", range(2, 9))

@@ -47,7 +47,7 @@ _UNPLACED = [
     "scaling.md",
 ]
 # examples/ holds sphinx-gallery's sources, rendered into gallery/ (not read as pages).
-exclude_patterns = ["_build", "examples", *_UNPLACED]
+exclude_patterns = ["_build", "_templates", "examples", *_UNPLACED]
 
 
 # MyST: $...$ and $$...$$ maths, \begin{align} blocks, ::: fences, definition lists; heading
@@ -61,6 +61,7 @@ myst_heading_anchors = 4
 # listed by autosummary's own template, so numpydoc's member tables (which would want a stub
 # page for every inherited method) stay off.
 autosummary_generate = True
+templates_path = ["_templates"]  # autosummary/class.rst: a class with its documented members
 autodoc_typehints = "none"  # the numpydoc sections give the types, in the field's words
 autodoc_member_order = "bysource"
 numpydoc_show_class_members = False

@@ -43,7 +43,8 @@ class CubedSphere:
     the whole grid: 6·ne² on the cube, ``mesh.nelem``), elements (E,) int64 (those held).
 
     Arrays (float64 unless said; N = nelem·np² element-local nodes held, those of
-    ``elements`` in order; "global" indices are those of the whole grid):
+    ``elements`` in order; "global" indices are those of the whole grid)::
+
       nodes (N,) int64   global element-local index of each node held
       xyz (3, N)       unit position vectors
       lat, lon (N,)    radians; lon in [0, 2π); lon = 0 at the poles
@@ -77,7 +78,7 @@ class CubedSphere:
     computed per node, the numbering from the cube's (or mesh's) topology, and the area
     correction from the analytic Jacobian (or per element: the same for any part).
     Raises ``ArgumentError`` (a ValueError) naming the argument for ne not an integer >= 1
-    (>= 0 with a mesh, or ne > 0 not the mesh's 6·ne² elements), np_ not an integer in 2..8,
+    (>= 0 with a mesh, or ne > 0 not the mesh's 6·ne² elements), ``np_`` not an integer in 2..8,
     a radius (m) not finite and > 0, a mesh not a ``Mesh``, elements not ascending distinct
     indices of the grid; ``ValueError`` for np 2 with a mesh through the element-local map, or
     a mesh element the map folds

@@ -200,7 +200,7 @@ def kinetic_energy_spectrum(run, days=None, lmax: int | None = None) -> xr.Datas
     The energy is per unit mass and a global mean: Σ_l E(l) is the area mean
     of ½|v|² (m² s⁻²), h not weighted in. With ζ_lm, δ_lm the coefficients of
     the vorticity and divergence in harmonics orthonormal on the unit sphere,
-    E_rot(l) = a² / (8π l(l+1)) Σ_{m=−l..l} |ζ_lm|² and E_div(l) likewise from
+    ``E_rot(l) = a² / (8π l(l+1)) Σ_{m=−l..l} |ζ_lm|²`` and E_div(l) likewise from
     δ_lm (the streamfunction ψ_lm = −a² ζ_lm / (l(l+1)); a the planet radius,
     ``planet_radius``). The harmonics are ducc0's: ζ and δ of the file (the
     model's DSS'd curl and divergence) on ``remap.latlon_grid`` at

@@ -76,6 +76,13 @@ def check_sources(parser, sources) -> None:
             parser.error(f"--source {source}: no swe_sphere tree there")
 
 
+def interleave(a: list, b: list) -> list:
+    """a[0], b[0], a[1], b[1], ... then the rest of the longer list: two models' runs taken in
+    turn, so that a change of the machine's load hits both alike."""
+    out = [x for pair in zip(a, b) for x in pair]
+    return out + a[len(b) :] + b[len(a) :]
+
+
 def cpu_model() -> str:
     """The CPU's model name (Linux's /proc/cpuinfo; elsewhere what ``platform`` says)."""
     with contextlib.suppress(OSError):

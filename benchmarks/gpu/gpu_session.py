@@ -37,10 +37,10 @@
 * ``precision``: float32 and float64 side by side (issue 114 item 7; ``--precisions``): ``--scene`` at
   each ``--ne`` (default the scene's grid), one run a precision built at once, ``--warmup`` steps
   (compiles, records, captures), then ``--runs`` rounds of ``--graph-steps`` steps, the
-  precisions in turn and their order swapped each round: ms a step (medians; a Simulation's the
-  run's time loop, graphs on as a user's run on the card; with ``--members`` N > 1 an ensemble of N
-  in the same launches, 1 m perturbations of h, wall clock around its ``step``) and simulated days a
-  wall day; then max |h − h_float64| / max |h_float64| after the same steps, and (a Simulation)
+  precisions in turn and their order swapped each round: ms a step (medians of the run's time
+  loop, graphs on as a user's run on the card; with ``--members`` N > 1 N members of one
+  Simulation in the same launches, 1 m perturbations of h) and simulated days a
+  wall day; then max |h − h_float64| / max |h_float64| after the same steps, and (one member)
   ``floor``'s bare replays of one step's graph and of ``--chain`` steps a graph.
 * ``card``: the summary of ``gpu_session.sh card``'s items in ``--folder`` (their results files,
   ``mpi.xml``, ``exchange.txt``, ``session.log``): one markdown table against issue 99's and 114's
@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import statistics
 import sys
 import time
@@ -73,7 +72,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: res
 from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
 # isort: split
-from ensemble_cost import clock  # noqa: E402
+from card_tables import PRECISION_COLUMNS, card, header, precision_row  # noqa: E402
 from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
 from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402
@@ -81,16 +80,9 @@ from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E40
 from swe_sphere.config.scene import load_scene  # noqa: E402
 from swe_sphere.core.constants import DAY  # noqa: E402
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
-from swe_sphere.ensemble import Ensemble, Perturbation  # noqa: E402
+from swe_sphere.members.initial import Perturbation  # noqa: E402
 from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers import STEPPERS  # noqa: E402
-
-
-def _header(title, columns, right):
-    """Print a table's title, its header and the alignment row (the last ``right`` columns right-aligned)."""
-    print(title)
-    print("| " + " | ".join(columns) + " |")
-    print("|" + "---|" * (len(columns) - right) + "---:|" * right)
 
 
 def _scene(name, ne, dt_factor, **kw):
@@ -104,7 +96,7 @@ def _scene(name, ne, dt_factor, **kw):
 
 
 def agreement(args):
-    _header(
+    header(
         f"TC5 ne{args.ne[0]} np4, {args.days:g} days (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt): "
         f"max|h_{args.device} − h_cpu| / max|h_cpu|",
         ["stepper", "after one RHS", "after the run", "steps", "wall s device", "wall s cpu"],
@@ -139,7 +131,7 @@ def copy_bandwidth(device, nbytes=2**30, repeat=10):
 
 def throughput(args):
     bw = copy_bandwidth(args.device, args.copy_mib * 2**20)
-    _header(
+    header(
         f"device copy ({args.copy_mib} MiB, read + write): {bw / 1e9:.0f} GB/s",
         [
             "ne",
@@ -181,7 +173,7 @@ def _stepper(name, ne, device, dt_factor):
 def graphs(args):
     ne = args.ne[0]
     names = args.steppers or [n for n, cls in STEPPERS.items() if cls.capturable]
-    _header(
+    header(
         f"TC5 ne{ne} np4 (tc5_mountain_homme's Δt): µs a step of Simulation.run, {args.graph_steps} steps after 100, "
         f"median of {args.runs}, plain launches and graphs ({args.device})",
         ["stepper", "Δt s", "plain µs", "graphs µs", "speed-up"],
@@ -211,7 +203,7 @@ BITS_CONTROLLED = {
 
 def bits(args):
     ne, steps = args.ne[0], args.steps
-    _header(
+    header(
         f"TC5 ne{ne} np4, {steps} steps (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.device}): "
         "plain launches against graphs",
         ["stepper", "Δt s", "graphs kept", "same bits", "max |Δh| m", "wall s plain", "wall s graphs"],
@@ -245,7 +237,7 @@ def bits(args):
 def reads(args):
     ne = args.ne[0]
     krylov = f", Krylov work: {args.krylov}" if args.krylov else ""
-    _header(
+    header(
         f"TC5 ne{ne} np4 (semi_implicit, implicit, imex at {args.dt_factor:g}× Δt; {args.steps} steps after 2, {args.device}{krylov}): "
         "host reads and launches a step",
         ["stepper", "graphs", "host reads a step", "launches a step"],
@@ -270,7 +262,7 @@ def reads(args):
 
 def iterations(args):
     ne = args.ne[0]
-    _header(
+    header(
         f"TC5 ne{ne} np4 at {args.dt_factor:g}× Δt: solver iterations per step ({args.steps} steps after 1), {args.device} vs cpu",
         ["stepper", "device", "iterations per step", "RHS per step", "ms per step"],
         2,
@@ -312,7 +304,7 @@ def _replayed(graph, dev, replays, chain=1) -> float:
 
 
 def floor(args):
-    _header(
+    header(
         f"µs a step ({args.device}; {args.graph_steps} steps, median of {args.runs}): the run's loop, a graph a step "
         f"from a bare loop, {' and '.join(map(str, args.chain))} steps a graph",
         [
@@ -366,7 +358,7 @@ def kernels(args):
             spent[r.name] = spent.get(r.name, 0.0) + r.elapsed * 1e3 / args.steps
             count[r.name] = count.get(r.name, 0) + 1
         total = sum(spent.values())
-        _header(
+        header(
             f"{name} ne{scene.ne} np{scene.np} {scene.stepper} ("
             f"{sim.model.N} nodes): µs a step on the device, {args.steps} plain-launched steps; wall {wall * 1e6:.1f} µs a "
             f"step, the activities' sum {total:.1f} µs",
@@ -377,56 +369,18 @@ def kernels(args):
             print(f"| {k} | {count[k] / args.steps:g} | {spent[k]:.1f} | {spent[k] / (total or 1):.0%} |", flush=True)
 
 
-PRECISION_COLUMNS = [
-    "scene",
-    "ne np",
-    "stepper",
-    "members",
-    "precision",
-    "graphs kept",
-    "Δt s",
-    "build s",
-    "ms a step",
-    "ms a member",
-    "days a wall day",
-    "× float64",
-    "graph a step µs",
-    "chained µs",
-    "max|Δh| / max h",
-    "target",
-]
-
-
-def precision_row(r: dict) -> str:
-    """A ``precision`` row (its figures' dict) as a markdown row of ``PRECISION_COLUMNS``."""
-    chained = ", ".join(f"{k}: {us:.1f}" for k, us in r["chained_us"].items()) or "–"
-    graph = "–" if r["graph_step_us"] is None else f"{r['graph_step_us']:.1f}"
-    met = "" if r["target"] is None else f"{r['target']}: {'met' if r['met'] else 'NOT met'}"
-    return (
-        f"| {r['scene']} | {r['ne']} {r['np']} | {r['stepper']} | {r['members']} | {r['precision']} | {r['graphs_kept']} | "
-        f"{r['dt']:.4g} | {r['build_s']:.1f} | {r['ms_a_step']:.4f} | {r['ms_a_member']:.4f} | {r['days_a_wall_day']:,.0f} | "
-        f"{r['speedup']:.2f} | {graph} | {chained} | {r['h_rel_diff']:.2e} | {met} |"
-    )
-
-
 def _precision_run(args, ne, precision, steps):
     """``args.scene`` at ``ne`` (None: the scene's) and ``precision`` with room for ``steps`` steps: the
-    scene, the Simulation (or with ``--members`` N > 1 the ensemble of N in the same launches, 1 m
+    scene, the Simulation (with ``--members`` N > 1, N members in the same launches, 1 m
     perturbations of h seeded alike) and a call that steps it n steps and returns the seconds a step.
     Graphs "on": the card's default, and on a CPU (one thread) the same path."""
     scene = load_scene(args.scene, ne=ne, precision=precision)
     days = steps * scene.dt / DAY
     scene = dataclasses.replace(scene, days=days, output_every_days=days)
-    if args.members > 1:
-        run = Ensemble(scene, args.members, Perturbation(1.0, seed=1), device=args.device, layout="shared", graphs="on")
-
-        def advance(n):
-            t = clock(args.device)
-            run.step(n)
-            return (clock(args.device) - t) / n
-
-        return scene, run, advance
-    run, done = Simulation(scene, args.device, progress=False, graphs="on"), [0]
+    many = (
+        {"members": args.members, "initial": Perturbation(1.0, seed=1), "layout": "shared"} if args.members > 1 else {}
+    )
+    run, done = Simulation(scene, args.device, progress=False, graphs="on", **many), [0]
 
     def advance(n):  # the run's time loop, as ``graphs`` and ``floor`` time it
         done[0] += n
@@ -440,7 +394,7 @@ def precision(args, figures):
     steps = args.warmup + args.runs * n
     figures.update(device=dev.name, warp=wp.config.version, rows=[])
     kind = f"{args.members} members in the same launches" if args.members > 1 else "one run"
-    _header(
+    header(
         f"{args.scene}, {kind}, {' and '.join(names)} ({args.device}: {dev.name}): {args.warmup} steps, then "
         f"{args.runs} rounds of {n} steps, the precisions in turn (order swapped each round), medians",
         PRECISION_COLUMNS,
@@ -457,7 +411,7 @@ def precision(args, figures):
         for k in range(args.runs):
             for name in names if k % 2 == 0 else names[::-1]:
                 per_step[name].append(runs[name][2](n))
-        h = {name: (run.fields(0) if args.members > 1 else run.fields())[2] for name, (_, run, _) in runs.items()}
+        h = {name: run.states()[0, 2] for name, (_, run, _) in runs.items()}  # member 0's h
         base = names[0]
         for name in names:
             scene, run, _ = runs[name]
@@ -497,80 +451,6 @@ def precision(args, figures):
                 )
             figures["rows"].append(row)
             print(precision_row(row), flush=True)
-
-
-def _log_items(text: str) -> dict:
-    """``gpu_session.sh``'s session.log: each part's exit status and seconds (the last of a name)."""
-    items = {}
-    for line in text.splitlines():
-        words = line.split()
-        if len(words) == 7 and words[0] == "==" and words[2] == "exit" and words[4] == "after":  # run()'s line
-            items[words[1].rstrip(":")] = {"exit": int(words[3]), "s": int(words[5])}
-    return items
-
-
-def _junit(path: Path) -> dict | None:
-    """pytest's junit file: the counts and each test's outcome (None: no file, the part not run or stopped)."""
-    import xml.etree.ElementTree as ET
-
-    if not path.is_file():
-        return None
-    suite = ET.parse(path).getroot()
-    suite = suite if suite.tag == "testsuite" else suite.find("testsuite")
-    tests = {}
-    for case in suite.iter("testcase"):
-        outcome = next((c.tag for c in case if c.tag in ("failure", "error", "skipped")), "passed")
-        tests[case.get("name")] = outcome
-    counts = {k: int(suite.get(k, 0)) for k in ("tests", "failures", "errors", "skipped")}
-    return {**counts, "outcomes": tests}
-
-
-def _exchange_tables(text: str) -> list[str]:
-    """``scaling.py``'s time tables (ms a step, the exchange's share, the bare exchange µs) from its output."""
-    lines, keep = [], False
-    for line in text.splitlines():
-        keep = keep and bool(line.strip()) and not line.startswith("figures written") or "RK4 TC5 on" in line
-        if keep:
-            lines.append(line)
-    return lines
-
-
-def card(args, figures):
-    folder = Path(args.folder)
-    items = _log_items((folder / "session.log").read_text()) if (folder / "session.log").is_file() else {}
-    rows, devices = [], set()  # in the order the items ran
-    for path in sorted(folder.glob("precision_*.json"), key=lambda p: [*items, p.stem].index(p.stem)):
-        record = json.loads(path.read_text())
-        rows += [{"item": path.stem, **r} for r in record["figures"]["rows"]]
-        devices.add(f"{record['figures']['device']} (Warp {record['figures']['warp']}, {record['commit']})")
-    mpi = _junit(folder / "mpi.xml")
-    exchange = _exchange_tables((folder / "exchange.txt").read_text()) if (folder / "exchange.txt").is_file() else []
-    figures.update(items=items, precision=rows, mpi=mpi, exchange=exchange, devices=sorted(devices))
-    print(f"On {', '.join(sorted(devices)) or 'no device (no precision item ended)'}\n")
-    _header("The card's items (session.log): exit status and seconds", ["item", "exit", "s"], 2)
-    for name, item in items.items():
-        print(f"| {name} | {item['exit']} | {item['s']} |")
-    print()
-    _header(
-        "float32 against float64 (gpu_session.py precision)", ["item", *PRECISION_COLUMNS], len(PRECISION_COLUMNS) - 5
-    )
-    for r in rows:
-        print(f"| {r['item']} {precision_row(r)}")
-    print()
-    if mpi is None:
-        print(
-            "2 ranks on one card against 1 (tests/test_mpi_devices.py): no results (not run, or stopped by its time box)"
-        )
-    else:
-        print(
-            f"2 ranks on one card against 1 (tests/test_mpi_devices.py): {mpi['tests']} tests, {mpi['failures']} failed, "
-            f"{mpi['errors']} errors, {mpi['skipped']} skipped (a skip on the card is a failure)"
-        )
-        for name, outcome in mpi["outcomes"].items():
-            print(f"- {name}: {outcome}")
-    print()
-    print("The staged exchange (benchmarks/scaling.py; bare exch us: docs/scaling.md's S)")
-    print("\n".join(exchange) if exchange else "no time table (not run, or stopped by its time box)")
 
 
 def main(argv=None):

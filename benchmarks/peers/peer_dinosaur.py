@@ -119,7 +119,6 @@ import argparse
 import math
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -137,6 +136,7 @@ ONE_THREAD = {
     "OPENBLAS_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
 }
+CHILD = Path(__file__).with_name("dinosaur_child.py")  # a run of either model, in a process of its own
 DEFAULT_PYTHON = Path("/work/venvs/dinosaur/bin/python")
 # ``--best-step``'s candidate steps of the peer, s: steps that divide a day (86400 / N)
 DAY_STEPS = (300.0, 450.0, 600.0, 720.0, 900.0, 1200.0, 1440.0, 1800.0, 2400.0, 2880.0, 3600.0, 4320.0, 5400.0, 7200.0)
@@ -211,131 +211,6 @@ def gaussian_grid(nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     lon = 2 * math.pi * np.arange(4 * nodes) / (4 * nodes)
     lat2, lon2 = np.meshgrid(np.arcsin(sin_lat), lon)
     return lat2, lon2, np.broadcast_to(w * 2 * math.pi / lon.size, lat2.shape).copy()
-
-
-# -- the peer, in its own environment ----------------------------------------------------------
-def peer_child(inp: Path, out: Path, transforms: str) -> None:
-    """Run Dinosaur on the state in ``inp`` (``run_peer`` writes it) and write its fields at
-    the start and at the last day (``peer_fields``: vorticity s⁻¹, h and h + hs m) on its
-    grid, with the loop's CPU and wall seconds, to ``out``."""
-    import functools
-    import time
-
-    import jax
-
-    d = np.load(inp)
-    jax.config.update("jax_enable_x64", bool(d["x64"]))  # float32: JAX's default, Dinosaur's NeuralGCM use
-    from dinosaur import coordinate_systems, layer_coordinates, scales, spherical_harmonic, time_integration, units
-
-    truncation, nodes, dt, days = int(d["truncation"]), int(d["nodes"]), float(d["dt"]), float(d["days"])
-    impl = (
-        functools.partial(spherical_harmonic.FastSphericalHarmonics, fourier_method="fft")
-        if transforms == "fft"
-        else spherical_harmonic.RealSphericalHarmonics
-    )
-    grid = spherical_harmonic.Grid.construct(truncation, nodes, spherical_harmonics_impl=impl)
-    lon, sin_lat = grid.nodal_axes
-    assert np.allclose(lon, d["lon"][:, 0], atol=1e-12) and np.allclose(sin_lat, np.sin(d["lat"][0]), atol=1e-12)
-    coords = coordinate_systems.CoordinateSystem(grid, layer_coordinates.LayerCoordinates(1))
-    specs = units.SimUnits.from_si()
-    state, eq = peer_state(grid, coords, specs, d)
-    dt_nd = float(specs.nondimensionalize(dt * scales.units.s))
-    step = time_integration.step_with_filters(
-        time_integration.imex_rk_sil3(eq, dt_nd), [time_integration.exponential_step_filter(grid, dt_nd)]
-    )
-    nsteps = round(days * 86400 / dt)
-    loop = jax.jit(time_integration.repeated(step, nsteps)).lower(state).compile()
-    cpu0, wall0 = time.process_time(), time.perf_counter()
-    final = jax.block_until_ready(loop(state))
-    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
-    start = {f"start_{k}": v for k, v in peer_fields(grid, specs, eq, state, d).items()}
-    np.savez(out, **peer_fields(grid, specs, eq, final, d), **start, cpu=cpu, wall=wall, steps=nsteps)
-
-
-def peer_state(grid, coords, specs, d):
-    """The peer's modal state and equations from the nodal u, v (m/s), fluid depth h and
-    surface height hs (m) in ``d``: its vorticity and divergence from the wind
-    (``uv_nodal_to_vor_div_modal``), its potential g (h − H) (H: ``d["mean_depth"]``, the
-    reference geopotential g H of its semi-implicit step), its orography g hs, modal
-    (Dinosaur's own mountain test sets these two so: ``shallow_water_test._get_mountain``;
-    None without a mountain). Nondimensional, Dinosaur's units."""
-    from dinosaur import scales, shallow_water, spherical_harmonic
-
-    m, s = scales.units.m, scales.units.s
-    nd = specs.nondimensionalize
-    wind, metre, g = float(nd(1.0 * m / s)), float(nd(1.0 * m)), specs.g
-    depth = float(d["mean_depth"]) * metre
-    vor, div = spherical_harmonic.uv_nodal_to_vor_div_modal(grid, d["u"] * wind, d["v"] * wind)
-    potential = grid.to_modal(g * (d["h"] * metre - depth))
-    orography = grid.to_modal(g * d["hs"] * metre) if np.any(d["hs"]) else None
-    state = shallow_water.State(vor[None], div[None], potential[None])
-    return state, shallow_water.ShallowWaterEquations(coords, specs, orography, np.array([g * depth]))
-
-
-def peer_fields(grid, specs, eq, state, d) -> dict:
-    """The peer's nodal relative vorticity (s⁻¹), fluid depth h and free surface h + hs (m,
-    with its own orography) of a modal ``state``, each clipped of its top total wavenumber as
-    the peer's tendencies are (``clip_wavenumbers``: its orography's top mode never acts)."""
-    from dinosaur import scales
-
-    per_second = float(specs.dimensionalize(1.0, scales.units("1/s")).magnitude)
-    metre, g = float(specs.nondimensionalize(1.0 * scales.units.m)), specs.g
-    potential = grid.clip_wavenumbers(state.potential[0])
-    surface = potential if eq.orography is None else grid.clip_wavenumbers(state.potential[0] + eq.orography)
-    depth = float(d["mean_depth"])
-    return dict(
-        vorticity=np.asarray(grid.to_nodal(grid.clip_wavenumbers(state.vorticity)))[0] * per_second,
-        h=np.asarray(grid.to_nodal(potential)) / g / metre + depth,
-        h_surface=np.asarray(grid.to_nodal(surface)) / g / metre + depth,
-    )
-
-
-# -- swe_sphere, in the project's environment --------------------------------------------------
-def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
-    """Run ``study``'s scene in the configuration ``config`` (``parse_swe``) on ``device`` to its
-    last day and write its vorticity, h and h + hs at the last day at its unique nodes, their
-    lat/lon (rad) and area, its Δt, the step loop's CPU and wall seconds a day between day 1 and
-    the last, and its own score of the study's field (``ref_l2_vorticity`` or
-    ``ref_l2_h_surface``), to ``out``."""
-    import netCDF4
-
-    from swe_sphere.simulation.simulation import Simulation
-
-    st, (ne, np_, stepper, dt, sets) = STUDIES[study], parse_swe(config)
-    kw = {} if dt is None else {"dt": dt}
-    sim = Simulation(
-        st.scene,
-        device,
-        ne=ne,
-        np=np_,
-        stepper=stepper,
-        days=st.days,
-        output={"every_days": 1.0},
-        case={"reference": "T341"},
-        **kw,
-        **sets,
-    )
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "run.nc"
-        result = sim.run(path)
-        day = {round(h["steps"] * sim.scene.dt / 86400, 6): h for h in result.history}
-        with netCDF4.Dataset(path) as ds:
-            f = {k: np.asarray(ds[k][...], dtype=np.float64) for k in ("lat", "lon", "area", "hs")}
-            zeta, h = (np.asarray(ds[k][-1], dtype=np.float64) for k in ("vorticity", "h"))
-            own = float(ds[f"ref_l2_{st.field}"][-1])
-    np.savez(
-        out,
-        vorticity=zeta,
-        h=h,
-        h_surface=h + f["hs"],
-        lat=np.radians(f["lat"]),
-        lon=np.radians(f["lon"]),
-        area=f["area"],
-        dt=sim.scene.dt,
-        cpu_per_day=(day[st.days]["cpu_time"] - day[1.0]["cpu_time"]) / (st.days - 1.0),
-        wall_per_day=(day[st.days]["wall_time"] - day[1.0]["wall_time"]) / (st.days - 1.0),
-        own=own,
-    )
 
 
 def parse_swe(config: str) -> tuple[int, int, str, float | None, dict]:
@@ -418,9 +293,9 @@ def pinned(cmd: list[str]) -> list[str]:
 
 
 def run_child(python: str, args: list[str], device: str = "cpu") -> None:
-    """Run this script as a child (``python`` its interpreter) with ``args`` (``device`` its
+    """Run ``dinosaur_child.py`` (``python`` its interpreter) with ``args`` (``device`` its
     JAX platform); raise with its last lines when it fails."""
-    out = subprocess.run(pinned([python, __file__, *args]), env=child_env(device), capture_output=True, text=True)
+    out = subprocess.run(pinned([python, str(CHILD), *args]), env=child_env(device), capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(f"{' '.join(args[:3])} failed:\n" + "\n".join(out.stderr.splitlines()[-15:]))
 
@@ -599,7 +474,8 @@ def main() -> None:
         print(f"peer_dinosaur: skipped: {why}")
         return
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-    from results import recorded
+    from peer_levels import best_step, levels, summary
+    from results import interleave, recorded
 
     from swe_sphere.cases.library import make_case
     from swe_sphere.cases.reference import Reference, reference_path
@@ -620,43 +496,10 @@ def main() -> None:
         search: dict[str, dict] = {}  # truncation -> its best-step search (``best_step``)
         peers: dict[str, str] = {}  # truncation -> the name of its row the summary compares against
 
+        refs = (t341, t213)
+
         def measure(rnd: int, kind: str, what: str, dt: float | None = None) -> tuple[str, dict]:
-            """One run, scored, printed and added to ``table``: (its row's name, the row)."""
-            load = os.getloadavg()[0]
-            if kind == "peer":
-                dt = dt or GRIDS[what][1]
-                name = f"dinosaur {what} {dt:g} s"
-            else:
-                name, dt = f"swe_sphere {what}", parse_swe(what)[3]
-            try:
-                if kind == "peer":
-                    run = run_peer(
-                        args.python, args.case, what, args.transforms, Path(tmp), dt, args.device, args.precision
-                    )
-                else:
-                    run = run_swe(args.case, what, Path(tmp), args.device)
-            except RuntimeError as e:  # a blow-up the model refuses, a refused option: the row says so
-                print(f"round {rnd + 1} {name}: failed (load {load:.2f}): {str(e).splitlines()[-1]}")
-                row = table.setdefault(name, {f"l2_{f}": math.nan for f in FIELDS} | {"dt": dt or math.nan})
-                row.update(failed=str(e).splitlines()[-1])
-                row.setdefault("load", []).append(load)
-                return name, row
-            l2s = scores(run, t341, st.days)
-            row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
-            row.setdefault(f"{clock}_per_day", []).append(run[f"{clock}_per_day"])
-            row.setdefault("load", []).append(load)
-            extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
-            row.update(extra)
-            print(
-                f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
-                f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
-                + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
-                + f"; {run[f'{clock}_per_day']:.3g} {clock} s a simulated day (load {load:.2f})"
-            )
-            if kind == "peer" and what == args.truncations[-1] and not any("t213_vs_t341" in r for r in table.values()):
-                r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
-                row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
-            return name, row
+            return measure_run(args, Path(tmp), refs, table, clock, rnd, kind, what, dt)
 
         for rnd in range(args.rounds):
             for kind, what in order:
@@ -686,113 +529,47 @@ def main() -> None:
         figures["runs"] = table
 
 
-def best_step(measure, reference_dt: float, steps: list[float], tolerance: float, st: Study, clock: str) -> dict:
-    """The peer's largest Δt that keeps its error within ``tolerance`` (relative) of its error at
-    ``reference_dt``: ``measure(dt)`` (→ (name, row)) at the reference, then at each of ``steps``
-    above it, upwards, up to the first that blows up (a non-finite error or a failed run) or loses
-    more than ``tolerance``. Returns the search: the reference's Δt and error, each tried step's Δt,
-    error, cost a day on ``clock``, load and verdict, and the best Δt and its figures."""
-    name, row = measure(reference_dt)
-    e_ref = row[f"l2_{st.field}"]
-    tried = []
-
-    def note(dt: float, row: dict, verdict: str) -> None:
-        cost = row.get(f"{clock}_per_day", [math.nan])[-1]
-        tried.append(
-            {
-                "dt": dt,
-                f"l2_{st.field}": row[f"l2_{st.field}"],
-                f"{clock}_per_day": cost,
-                "load": row["load"][-1],
-                "verdict": verdict,
-            }
-        )
-
-    if not math.isfinite(e_ref):
-        raise RuntimeError(f"{name}: the reference step blew up; give a smaller --reference-dt")
-    note(reference_dt, row, "reference")
-    best = reference_dt
-    for dt in sorted(x for x in set(steps) if x > reference_dt):
-        _, row = measure(dt)
-        e = row[f"l2_{st.field}"]
-        if not math.isfinite(e) or e > 1e3 * e_ref:
-            note(dt, row, "blew up")
-            break
-        if e > (1 + tolerance) * e_ref:
-            note(dt, row, f"lost {e / e_ref - 1:.2%}")
-            break
-        note(dt, row, f"kept ({e / e_ref - 1:+.2%})")
-        best = dt
-    best_row = next(t for t in tried if t["dt"] == best)
-    print(
-        f"  best step {best:g} s: {st.field_name} l2 {best_row[f'l2_{st.field}']:.4g} ({e_ref:.4g} at "
-        f"{reference_dt:g} s), {best_row[f'{clock}_per_day']:.3g} {clock} s a simulated day; stopped: "
-        + (tried[-1]["verdict"] if tried[-1]["dt"] != best else "no larger step given")
-    )
-    return {
-        "reference_dt": reference_dt,
-        "reference_l2": e_ref,
-        "tolerance": tolerance,
-        "tried": tried,
-        "best_dt": best,
-        f"best_l2_{st.field}": best_row[f"l2_{st.field}"],
-    }
-
-
-def summary(table: dict, st: Study, clock: str = "cpu") -> None:
-    """Print the table, one line a model, each row's median cost on ``clock`` ("cpu" or "wall") added to it."""
-    print(f"model | dt s | {st.field_name} l2 | vorticity l2 | h l2 | {clock} s / simulated day (median) | load")
-    for name, row in table.items():
-        costs = row.get(f"{clock}_per_day", [])
-        row[f"{clock}_per_day_median"] = statistics.median(costs) if costs else math.nan
-        print(
-            f"{name} | {row['dt']:g} | {row[f'l2_{st.field}']:.3g} | {row['l2_vorticity']:.3g} | {row['l2_h']:.3g} | "
-            f"{row[f'{clock}_per_day_median']:.3g} | {min(row['load']):.1f}-{max(row['load']):.1f}"
-            + (f" | failed: {row['failed']}" if "failed" in row else "")
-        )
-        if "t213_vs_t341" in row:
-            print(f"  (T213 reference against T341 at {name}'s points: {st.field_name} l2 {row['t213_vs_t341']:.3g})")
-
-
-def levels(table: dict, peers: dict, st: Study, clock: str = "cpu") -> list[dict]:
-    """Per peer row the summary compares against (``peers``: truncation -> row name; at its best
-    step under ``--best-step``), the cheapest swe_sphere row (median cost on ``clock``) whose error
-    in the study's field (eq. 83, the same measure for both) is at most the peer's, and the cost
-    ratio ours / the peer's; printed and returned."""
-    key, cost = f"l2_{st.field}", f"{clock}_per_day_median"
-    swe = {n: r for n, r in table.items() if n.startswith("swe_sphere ") and math.isfinite(r[key])}
-    print(f"Dinosaur level ({st.field_name} l2) | its {clock} s a day | cheapest swe_sphere row reaching it | ratio")
-    out = []
-    for t, name in peers.items():
-        peer = table[name]
-        if not math.isfinite(peer[key]):
-            continue
-        reach = sorted((r[cost], n) for n, r in swe.items() if r[key] <= peer[key] and math.isfinite(r[cost]))
-        level = {"truncation": t, "peer": name, "peer_dt": peer["dt"], key: peer[key], "peer_cost": peer[cost]}
-        if reach:
-            c, n = reach[0]
-            level.update(swe=n, swe_l2=swe[n][key], swe_cost=c, ratio=c / peer[cost])
-            print(
-                f"{name} ({peer[key]:.4g}) | {peer[cost]:.3g} | {n} ({swe[n][key]:.4g} @ {c:.3g}) | {c / peer[cost]:.3g}x"
-            )
+def measure_run(
+    args, tmp: Path, refs, table: dict, clock: str, rnd: int, kind: str, what: str, dt: float | None = None
+):
+    """One run of round ``rnd``, the peer's (``kind`` "peer", ``what`` a truncation, at Δt ``dt``
+    s, None: ``GRIDS``') or swe_sphere's (``what`` a ``parse_swe`` configuration), scored against
+    ``refs`` (T341, T213), printed and added to ``table``: (its row's name, the row)."""
+    st, (t341, t213) = STUDIES[args.case], refs
+    load = os.getloadavg()[0]
+    if kind == "peer":
+        dt = dt or GRIDS[what][1]
+        name = f"dinosaur {what} {dt:g} s"
+    else:
+        name, dt = f"swe_sphere {what}", parse_swe(what)[3]
+    try:
+        if kind == "peer":
+            run = run_peer(args.python, args.case, what, args.transforms, tmp, dt, args.device, args.precision)
         else:
-            near = min(swe, key=lambda n: swe[n][key], default=None)
-            tail = f"none (the nearest: {near}, {swe[near][key]:.4g})" if near else "none"
-            print(f"{name} ({peer[key]:.4g}) | {peer[cost]:.3g} | {tail} | -")
-        out.append(level)
-    return out
-
-
-def interleave(a: list, b: list) -> list:
-    """a[0], b[0], a[1], b[1], ... then the rest of the longer list."""
-    out = [x for pair in zip(a, b) for x in pair]
-    return out + a[len(b) :] + b[len(a) :]
+            run = run_swe(args.case, what, tmp, args.device)
+    except RuntimeError as e:  # a blow-up the model refuses, a refused option: the row says so
+        print(f"round {rnd + 1} {name}: failed (load {load:.2f}): {str(e).splitlines()[-1]}")
+        row = table.setdefault(name, {f"l2_{f}": math.nan for f in FIELDS} | {"dt": dt or math.nan})
+        row.update(failed=str(e).splitlines()[-1])
+        row.setdefault("load", []).append(load)
+        return name, row
+    l2s = scores(run, t341, st.days)
+    row = table.setdefault(name, dict(**{f"l2_{k}": v for k, v in l2s.items()}, dt=run["dt"]))
+    row.setdefault(f"{clock}_per_day", []).append(run[f"{clock}_per_day"])
+    row.setdefault("load", []).append(load)
+    extra = start_check(run) if kind == "peer" else {f"own_ref_l2_{st.field}": run["own"]}
+    row.update(extra)
+    print(
+        f"round {rnd + 1} {name} dt {run['dt']:g} s: vorticity l2 {l2s['vorticity']:.4g}, h l2 "
+        f"{l2s['h']:.4g}, h + hs l2 {l2s['h_surface']:.4g}; "
+        + ", ".join(f"{k} {v:.3g}" for k, v in extra.items())
+        + f"; {run[f'{clock}_per_day']:.3g} {clock} s a simulated day (load {load:.2f})"
+    )
+    if kind == "peer" and what == args.truncations[-1] and not any("t213_vs_t341" in r for r in table.values()):
+        r213 = dict(run, **t213.at(st.days, run["lat"], run["lon"]))
+        row["t213_vs_t341"] = scores(r213, t341, st.days)[st.field]
+    return name, row
 
 
 if __name__ == "__main__":
-    if len(sys.argv) > 1 and sys.argv[1] == "--peer-child":
-        peer_child(Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4])
-    elif len(sys.argv) > 1 and sys.argv[1] == "--swe-child":
-        swe_child(sys.argv[2], sys.argv[3], Path(sys.argv[4]), sys.argv[5])
-    else:
-        main()
+    main()

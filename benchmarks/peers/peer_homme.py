@@ -358,7 +358,9 @@ def galewsky(args, sweqx: Path, figures: dict) -> int:
     """``--case galewsky``: HOMME's ``--runs`` and swe_sphere's ``--swe``, interleaved, each
     scored against T341 at its own points (``peer_dinosaur.scores``) and costed a simulated day;
     the table, and the figures in ``figures`` (``peer_dinosaur``'s layout)."""
-    from peer_dinosaur import STUDIES, interleave, run_swe, scores, summary
+    from peer_dinosaur import STUDIES, run_swe, scores
+    from peer_levels import summary
+    from results import interleave
 
     from swe_sphere.cases.library import make_case
     from swe_sphere.cases.reference import Reference, reference_path

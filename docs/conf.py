@@ -11,8 +11,13 @@ No intersphinx: the build needs no network beyond the package index the extra ca
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import swe_sphere
+
+# the pages generated from the code when the site is built (_ext/: the scene keys, the steppers)
+sys.path.insert(0, str(Path(__file__).parent / "_ext"))
 
 project = "swe_sphere"
 author = "swe_sphere contributors"
@@ -27,6 +32,8 @@ extensions = [
     "numpydoc",
     "sphinxarg.ext",
     "sphinx_gallery.gen_gallery",
+    "scene_keys",
+    "steppers_page",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

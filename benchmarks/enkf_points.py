@@ -135,7 +135,7 @@ def ensemble_arguments(description: str, length: float, h_scale: float, localiza
     )
     parser.add_argument("--ensemble-seed", type=int, default=100)
     parser.add_argument("--device", default="cpu", help="the ensemble's forecasts' (the truth runs on the CPU)")
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--results", help="results/enkf_points/<STEM>.json (default: the script's stem)")
     return parser
 
 

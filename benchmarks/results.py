@@ -38,8 +38,8 @@ def one_line(kind, err, tb) -> None:
     input, a blow-up: ``SweSphereError``) and a missing file end the script as the command line
     ends (one line naming the value, exit 2 or 3: ``swe_sphere.cli.main.classify``); anything else
     is a defect and keeps its traceback."""
+    from swe_sphere import SweSphereError
     from swe_sphere.cli.main import classify
-    from swe_sphere.core.errors import SweSphereError
 
     if not isinstance(err, (SweSphereError, FileNotFoundError)):
         sys.__excepthook__(kind, err, tb)
@@ -52,6 +52,16 @@ def one_line(kind, err, tb) -> None:
 
 
 sys.excepthook = one_line
+
+DAY = 86400.0  # s: the scripts' days and Δt (the package's own constant, not its public API: here, once)
+
+
+def quiet_warp():
+    """Warp initialised without its banner and load lines (the package's own start,
+    ``swe_sphere.core.runtime.init_warp``), before a script's first table; returns ``warp``."""
+    from swe_sphere.core.runtime import init_warp
+
+    return init_warp()
 
 
 def positive(kind, above=0):

@@ -151,7 +151,7 @@ def test_the_summary_names_its_vorticity_measure_and_prints_eq_83(capsys):
     """The summary's `vorticity l2` against a reference was the model's curl of v − v_ref
     over sqrt(∫ ζT² + δT²), 6–8 % below Williamson's eq. 83 at np 8; it now says so, and prints
     eq. 83 (the model's vorticity against the reference's own at the nodes, each node weighted
-    by its area, as benchmarks/peer_dinosaur.py scores every model) beside it."""
+    by its area, as benchmarks/peers/peer_dinosaur.py scores every model) beside it."""
     code, out, err = cli_main(capsys, "run", "tc5_mountain", *TINY, "--dt", "1800", "--days", "1", "--output", "r.nc")
     assert code == 0, err
     lines = [line for line in out.splitlines() if line.startswith("  vs T213")]

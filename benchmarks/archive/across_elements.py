@@ -18,9 +18,9 @@ how far apart the two are (the largest difference over the largest value).
 Random fields, metric and dvv (the arithmetic, not the operator, is timed: depths and metdet
 kept positive); for each ``--case NP,NE,W``, ``--rounds`` rounds of about 2 M node updates each
 layout in turn, the median CPU ns a node (``time.process_time``, one thread) and the ratio.
-Figures to ``benchmarks/results/across_elements[_STEM].json``::
+Figures to ``benchmarks/results/across_elements/across_elements[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 taskset -c 0 python benchmarks/across_elements.py --case 8,12,16 8,25,16 6,25,16 4,30,16 8,12,8 8,12,4
+    SWE_SPHERE_THREADS=1 taskset -c 0 python benchmarks/archive/across_elements.py --case 8,12,16 8,25,16 6,25,16 4,30,16 8,12,8 8,12,4
 """
 
 # no `from __future__ import annotations`: Warp reads the kernels' annotations as objects

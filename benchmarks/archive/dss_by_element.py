@@ -7,9 +7,9 @@ one as shipped and one built with the node gather (``Topology.element_rows`` Fal
 ``--steps`` steps a round, ``--rounds`` rounds taken in turn so that a change of load hits both
 alike; the median CPU ms a step (``time.process_time``, one thread) and the ratio. The two give
 the same bits (tests/grid/test_dss_by_element.py); the run checks it on the states after the
-rounds. Figures to ``benchmarks/results/dss_by_element[_STEM].json``::
+rounds. Figures to ``benchmarks/results/dss_by_element/dss_by_element[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/dss_by_element.py --scene galewsky tc5_mountain
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/archive/dss_by_element.py --scene galewsky tc5_mountain
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
 from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
+from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.grid.topology import Topology  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 
 def arguments():

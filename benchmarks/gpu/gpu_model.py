@@ -28,8 +28,8 @@ launch floor exceeds its GPU time. Bytes per point at ``--ne`` scale to other gr
 iteration counts at a fixed Courant number barely change with ne
 (benchmarks/README.md: semi-implicit at 4× 25 / 24 CG iterations at ne16 / 30).
 
-    python benchmarks/gpu_model.py                  # ne 8 counts, tables for ne 30 120 240
-    python benchmarks/gpu_model.py --ne 16 --at 30 60 --implicit-dt-factor 10
+    python benchmarks/gpu/gpu_model.py                  # ne 8 counts, tables for ne 30 120 240
+    python benchmarks/gpu/gpu_model.py --ne 16 --at 30 60 --implicit-dt-factor 10
 """
 
 from __future__ import annotations
@@ -49,9 +49,8 @@ from results import recorded
 from implicit_cost import use_krylov  # noqa: E402  (after the path: benchmarks/ first)
 from rhs_throughput import build as tc5  # noqa: E402
 
-from swe_sphere.config.scene import load_scene
+from swe_sphere import STEPPERS, load_scene, make_stepper
 from swe_sphere.core.tally import Tally, array_bytes, instrumented
-from swe_sphere.steppers import STEPPERS, make_stepper
 
 HBM = {"H100": 3.35e12, "H200": 4.8e12}  # B/s: HBM3 (SXM) and HBM3e
 EFFICIENCY = 0.7  # share of HBM bandwidth a streaming kernel reaches

@@ -49,10 +49,10 @@
 Medians of ``--repeat`` timings after a warm-up, synchronised; wall clock.
 Runs on the CPU too (``--device cpu``, small ``--ne``) to check the script.
 
-    python benchmarks/gpu_session.py throughput --ne 30 60 120 240
-    python benchmarks/gpu_session.py agreement --ne 4 --days 0.2 --device cpu
-    python benchmarks/gpu_session.py graphs --ne 30
-    python benchmarks/gpu_session.py precision --scene tc5_mountain --ne 120 --graph-steps 1000 --chain
+    python benchmarks/gpu/gpu_session.py throughput --ne 30 60 120 240
+    python benchmarks/gpu/gpu_session.py agreement --ne 4 --days 0.2 --device cpu
+    python benchmarks/gpu/gpu_session.py graphs --ne 30
+    python benchmarks/gpu/gpu_session.py precision --scene tc5_mountain --ne 120 --graph-steps 1000 --chain
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import DAY, positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
 # isort: split
 from card_tables import PRECISION_COLUMNS, card, header, precision_row  # noqa: E402
@@ -77,12 +77,13 @@ from gpu_model import IMPLICIT  # noqa: E402
 from implicit_cost import use_krylov  # noqa: E402
 from rhs_throughput import build, median_time, rhs_compulsory_bytes  # noqa: E402
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere import (
+    STEPPERS,  # noqa: E402
+    Perturbation,  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
-from swe_sphere.members.initial import Perturbation  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
-from swe_sphere.steppers import STEPPERS  # noqa: E402
 
 
 def _scene(name, ne, dt_factor, **kw):
@@ -502,7 +503,7 @@ def main(argv=None):
     p.add_argument("--target-ms", type=float, default=None, help="precision: a target, ms a step at most")
     p.add_argument("--target-days", type=float, default=None, help="precision: a target, simulated days a wall day")
     p.add_argument("--folder", default=".", help="card: the folder of the card's items")
-    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem; a path: there)")
+    p.add_argument("--results", help="results/gpu_session/<STEM>.json (default: the script's stem; a path: there)")
     args = p.parse_args(argv)
     args.steps = args.steps or {"bits": 10, "kernels": 20}.get(args.part, 3)
     if args.part != "precision":

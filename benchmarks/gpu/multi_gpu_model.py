@@ -2,14 +2,14 @@
 
 Prints, for each ne and GPU count, the time a step, the speed-up over one GPU and the parallel
 efficiency, and, per GPU count, the smallest share of the grid a GPU must hold for a split to
-pay (at all, and at 50 % parallel efficiency). Measured (benchmarks/GPU.md, one H100): a step's compute when bandwidth-bound (TC5 rk4
+pay (at all, and at 50 % parallel efficiency). Measured (benchmarks/gpu/GPU.md, one H100): a step's compute when bandwidth-bound (TC5 rk4
 ne120, 1.06 ms a step over 86 400 elements, 12.3 ns an element), the floor of a step launched
 plainly (142 µs at ne30: over several ranks no graphs) and as one graph (91 µs). Assumed
 (labelled so in docs/scaling.md, section "GPUs"): each exchange's fixed cost through the host,
 the PCIe copies' and the network's bandwidths and latencies.
 
-    python benchmarks/multi_gpu_model.py                      # ne 30 60 120 240 480, 1 to 64 GPUs
-    python benchmarks/multi_gpu_model.py --stage-us 20        # a faster exchange (CUDA-aware MPI, say)
+    python benchmarks/gpu/multi_gpu_model.py                      # ne 30 60 120 240 480, 1 to 64 GPUs
+    python benchmarks/gpu/multi_gpu_model.py --stage-us 20        # a faster exchange (CUDA-aware MPI, say)
 """
 
 from __future__ import annotations

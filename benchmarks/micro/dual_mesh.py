@@ -5,7 +5,7 @@ relative area error and how many are not convex. The cells are fitted on the run
 (radius a), built before the clock starts, as a run has it (``unit_dual_mesh(..., grid=)``); the
 peak RSS holds that grid.
 
-    python benchmarks/dual_mesh.py --ne 30 60 120 [--np 4] [--rounds 3] [--source TREE ...] [--results STEM]
+    python benchmarks/micro/dual_mesh.py --ne 30 60 120 [--np 4] [--rounds 3] [--source TREE ...] [--results STEM]
 
 Each round builds into an empty cache folder (a temporary one; the user's is not touched),
 then reads the entry back in another process; the medians over the rounds are printed
@@ -104,7 +104,7 @@ def parse() -> argparse.Namespace:
     p.add_argument(
         "--source", nargs="+", default=[None], help="swe_sphere trees, interleaved (default: the one Python finds)"
     )
-    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    p.add_argument("--results", help="results/dual_mesh/<STEM>.json (default: the script's stem)")
     return p.parse_args()
 
 

@@ -11,7 +11,7 @@ rounds of ``--steps`` steps (medians, CPU ms a step), and prints each against on
 and the scene's whole run (its steps at those medians plus the build):
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/ensemble_cost.py --scene galewsky --members 8
+        python benchmarks/micro/ensemble_cost.py --scene galewsky --members 8
 """
 
 from __future__ import annotations
@@ -26,11 +26,9 @@ from pathlib import Path
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded
+from results import positive, quiet_warp, recorded
 
-from swe_sphere import Simulation
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.members.initial import Perturbation
+from swe_sphere import Perturbation, Simulation
 
 
 def clock(device: str) -> float:
@@ -48,12 +46,12 @@ def parse() -> argparse.Namespace:
     parser.add_argument("--steps", type=positive(int), default=20, help="steps a round")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--results", help="results/ensemble_cost/<STEM>.json (default: the script's stem)")
     return parser.parse_args()
 
 
 def main(args: argparse.Namespace, figures: dict) -> None:
-    init_warp()
+    quiet_warp()
     n = args.members
     kinds = {
         "1 member": [(1, None)],

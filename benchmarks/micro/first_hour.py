@@ -3,7 +3,7 @@ process on one thread, its CPU seconds (user + sys, ``RUSAGE_CHILDREN``) less th
 its step loop (the run's own ledger, ``simulation.summary.Ledger``): the imports, the
 set-up, the diagnostics, scoring and writing at output times, the summary.
 
-    python benchmarks/first_hour.py [--scene tc5_mountain_homme] [--days 1] [--rounds 5]
+    python benchmarks/micro/first_hour.py [--scene tc5_mountain_homme] [--days 1] [--rounds 5]
                                     [--source DIR ...]
 
 Each ``--source`` is a tree of swe_sphere (a clone, or ``git archive COMMIT | tar -x``)

@@ -1,6 +1,6 @@
 """The CPU cost of a gradient (``swe_sphere.gradient``) against the forward run it differentiates.
 
-    python benchmarks/gradient_cost.py [--scene tc5_mountain] [--stepper rk4] [--ne 4 8]
+    python benchmarks/micro/gradient_cost.py [--scene tc5_mountain] [--stepper rk4] [--ne 4 8]
         [--steps 48 | --days D] [--dt DT] [--snapshots S] [--disk [FOLDER]] [--disk-interval K]
         [-s time.control=error -s time.rtol=5e-6] [--repeat 3] [--source DIR ...]
 
@@ -164,7 +164,7 @@ def main() -> None:
     parser.add_argument("-s", dest="sets", action="append", default=[], help="KEY=VALUE: the scene overridden")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--source", nargs="+", default=[None], help="swe_sphere trees (default: the one Python finds)")
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--results", help="results/gradient_cost/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
     check_sources(parser, args.source)
     if args.steps < 1 or (args.days is not None and not args.days > 0):

@@ -8,8 +8,8 @@ interpreter, numpy/scipy/xarray and Warp's libraries), and to the bytes of the
 arrays the run must hold: the state and the metric/index arrays on the device,
 the model's and the stepper's work arrays, and the grid's host (numpy) arrays.
 
-    python benchmarks/memory.py              # ne = 30
-    python benchmarks/memory.py --ne 60      # benchmarks/README.md's figure
+    python benchmarks/micro/memory.py              # ne = 30
+    python benchmarks/micro/memory.py --ne 60      # benchmarks/README.md's figure
 """
 
 from __future__ import annotations
@@ -45,10 +45,7 @@ def child_peak_rss(cmd) -> float:
 
 def array_bytes(ne, stepper):
     """Bytes of the run's arrays, by group, from a model built like the run's."""
-    from swe_sphere.config.scene import load_scene
-    from swe_sphere.grid.cubed_sphere import CubedSphere
-    from swe_sphere.model.shallow_water import ShallowWater
-    from swe_sphere.steppers import make_stepper
+    from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
     scene = load_scene("tc5_mountain_homme", ne=ne, np_=4, stepper=stepper)
     grid = CubedSphere(ne, 4)

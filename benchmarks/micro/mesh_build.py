@@ -7,7 +7,7 @@ same size built in. The cache is a temporary folder (the user's is not touched).
 The mesh is the project's own cube of ``--ne`` written as a ``.g`` (6·ne² elements; the
 default ne = 41, 10 086 elements, is an E3SM production size), or the ``.g`` files given.
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/mesh_build.py --ne 41 --np 4
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/micro/mesh_build.py --ne 41 --np 4
 """
 
 from __future__ import annotations
@@ -22,10 +22,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology
 from swe_sphere.io.dual import cached_cells
 from swe_sphere.mesh.cube import cube_mesh
@@ -49,7 +48,7 @@ def main() -> None:
     parser.add_argument("--mesh", nargs="*", default=[], help="Exodus .g files to time instead of the cube")
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["SWE_SPHERE_CACHE_DIR"] = str(Path(tmp) / "cache")
         files = [Path(p) for p in args.mesh] or [write_exodus(Path(tmp) / f"ne{args.ne}.g", cube_mesh(args.ne))]

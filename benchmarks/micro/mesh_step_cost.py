@@ -8,7 +8,7 @@ load changes hit all alike; medians. Each element-step ratio is to the equiangul
 ``--ne`` (the target: within 1.15).
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/mesh_step_cost.py --ne 13 --mesh PATH/mountain_10_x2.g
+        python benchmarks/micro/mesh_step_cost.py --ne 13 --mesh PATH/mountain_10_x2.g
 """
 
 from __future__ import annotations
@@ -25,13 +25,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import quiet_warp, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.core.runtime import init_warp  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
+from swe_sphere import (
+    CubedSphere,  # noqa: E402
+    make_stepper,  # noqa: E402
+)
 from swe_sphere.mesh.cube import cube_mesh  # noqa: E402
 from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
-from swe_sphere.steppers import make_stepper  # noqa: E402
 
 from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402
 
@@ -53,7 +54,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--steps", type=int, default=10, help="steps a round")
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     grids = {
         f"ne{args.ne} equiangular": CubedSphere(args.ne, 4),
         f"ne{args.ne} element-local": CubedSphere(args.ne, 4, mesh=cube_mesh(args.ne)),

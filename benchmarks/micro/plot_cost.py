@@ -4,7 +4,7 @@ series, ``--diff T213``, ``--spectrum``, ``--zonal-mean``, ``--animate``) run in
 imports and the first call: ``first``) and then ``--repeat`` times more in the same process, as a
 test suite meets it (grids and remappers built once a process: ``again``, the median).
 
-    python benchmarks/plot_cost.py [--ne 2 16] [--np 8 4] [--commands map default ...]
+    python benchmarks/micro/plot_cost.py [--ne 2 16] [--np 8 4] [--commands map default ...]
                                    [--rounds 3] [--repeat 3] [--source DIR ...]
 
 Each ``--source`` is a tree of swe_sphere (a worktree, or ``git archive COMMIT | tar -x``) put

@@ -15,8 +15,8 @@ then, with ``--peak-ne``, the peak resident memory of a short ``swe-sphere run``
 child process in each precision. Medians of ``--rounds``; ``--clock cpu`` (the default) times
 with ``time.process_time``, which another process's load does not inflate (one thread here).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/precision_speed.py                      # ne30 np4, ne120 np4 (TC5), ne12 np8 (galewsky)
-    SWE_SPHERE_THREADS=1 python benchmarks/precision_speed.py --peak-ne 120 240
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py                      # ne30 np4, ne120 np4 (TC5), ne12 np8 (galewsky)
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py --peak-ne 120 240
 """
 
 from __future__ import annotations
@@ -34,9 +34,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded
-
-from swe_sphere.core.runtime import init_warp
+from results import quiet_warp, recorded
 
 GRIDS = {
     "tc5_ne30_np4": ("tc5_mountain", 30, 4),
@@ -82,10 +80,7 @@ def device_bytes(*owners) -> int:
 
 def build(name: str, ne: int, np_: int, precision: str):
     """(model, stepper, state) of scene ``name`` at ne, np in ``precision``, one thread, CPU."""
-    from swe_sphere.config.scene import load_scene
-    from swe_sphere.grid.cubed_sphere import CubedSphere
-    from swe_sphere.model.shallow_water import ShallowWater
-    from swe_sphere.steppers import make_stepper
+    from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
     scene = load_scene(name, ne=ne, np_=np_)
     case = scene.make_case()
@@ -135,7 +130,7 @@ def main(argv=None):
     ap.add_argument("--peak-ne", type=int, nargs="*", default=[], help="TC5 grids for the peak-memory rows")
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")
     args = ap.parse_args(argv)
-    init_warp()  # quietly
+    quiet_warp()  # quietly
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
     with recorded("precision_speed", args.results) as figures:
         print(f"clock {args.clock}, one thread, medians of {args.rounds} rounds of {args.repeat} calls")

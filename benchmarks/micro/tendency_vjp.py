@@ -1,7 +1,7 @@
 """The tendency's vector–Jacobian product by Warp's automatic differentiation against the
 hand-written transpose (issue 82, item 1): is it right, and what does it cost?
 
-    SWE_SPHERE_THREADS=1 python benchmarks/tendency_vjp.py [--ne 2 3 4] [--np 4 8]
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/tendency_vjp.py [--ne 2 3 4] [--np 4 8]
         [--terms all | T,T ...] [--time 12:8 30:4] [--rounds 15] [--no-compile]
 
 Warp's side (tests/adjoint/warp_vjp.py): the CPU's forward kernel ``tendency_element`` compiled
@@ -41,7 +41,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
 sys.path.insert(
     0, str(Path(__file__).resolve().parents[2] / "tests" / "adjoint")
@@ -49,7 +49,6 @@ sys.path.insert(
 
 import warp_vjp as V  # noqa: E402
 
-from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.kernels import tendencies  # noqa: E402
 
 TERMS = tendencies.TENDENCY_TERMS
@@ -174,7 +173,7 @@ def main():
     p.add_argument("--no-compile", action="store_true", help="skip the compile times (a fresh cache)")
     args = p.parse_args()
     sets = all_term_sets() if args.terms == ["all"] else [tuple(t.split(",")) for t in args.terms]
-    init_warp()
+    quiet_warp()
     with recorded(__file__) as figures:
         print(f"threads: SWE_SPHERE_THREADS={os.environ.get('SWE_SPHERE_THREADS')}, load {os.getloadavg()}")
         print("1. agreement: ratio = max |x̄_warp − x̄_hand| / (ε S) (bound 2·depth); dot gaps / (ε size)")

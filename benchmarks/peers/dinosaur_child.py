@@ -102,7 +102,7 @@ def swe_child(study: str, config: str, out: Path, device: str = "cpu") -> None:
     ``ref_l2_h_surface``), to ``out``."""
     import netCDF4
 
-    from swe_sphere.simulation.simulation import Simulation
+    from swe_sphere import Simulation
 
     st, (ne, np_, stepper, dt, sets) = STUDIES[study], parse_swe(config)
     kw = {} if dt is None else {"dt": dt}

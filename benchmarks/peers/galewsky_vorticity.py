@@ -21,7 +21,7 @@ Printed, side by side for each cube (``[grid] cube``) at ``--ne`` (default 16), 
   set-up is another case (the bump's western half lost to longitudes in [0, 2π); h(−π/2) =
   10 km rather than the mean).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/galewsky_vorticity.py [--ne 16] [--no-runs]
+    SWE_SPHERE_THREADS=1 python benchmarks/peers/galewsky_vorticity.py [--ne 16] [--no-runs]
 """
 
 from __future__ import annotations
@@ -40,10 +40,12 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import swe_sphere  # noqa: E402
+from swe_sphere import (
+    CubedSphere,  # noqa: E402
+    ShallowWater,  # noqa: E402
+)
 from swe_sphere.cases.library import make_case  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
 from swe_sphere.mesh.equidistant import equidistant_cube  # noqa: E402
-from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
 
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
 if hasattr(wp, "LOG_WARNING"):

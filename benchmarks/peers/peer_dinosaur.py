@@ -83,21 +83,21 @@ later ``--rounds`` rerun only the best step. **The summary's last table** gives,
 at or below it, the same eq. 83 measure for both, and the cost ratio ours / Dinosaur's (``levels``
 in the results file).
 
-Figures, one command each: ``benchmarks/results/peer_dinosaur.json`` (Galewsky, Dinosaur at
-``GRIDS``' steps; ``python benchmarks/peer_dinosaur.py``), ``peer_dinosaur_tc5.json`` (TC5;
+Figures, one command each: ``benchmarks/results/peer_dinosaur/peer_dinosaur.json`` (Galewsky, Dinosaur at
+``GRIDS``' steps; ``python benchmarks/peers/peer_dinosaur.py``), ``peer_dinosaur_tc5.json`` (TC5;
 ``--case tc5``), ``peer_dinosaur_tc6.json`` (TC6; ``--case tc6``); Galewsky with Dinosaur at its best
 step, ``peer_dinosaur_best_step.json``::
 
-    python benchmarks/peer_dinosaur.py --best-step --truncations T42 T85 T170 --swe ne8/np8/kgu35,86400/366 \
+    python benchmarks/peers/peer_dinosaur.py --best-step --truncations T42 T85 T170 --swe ne8/np8/kgu35,86400/366 \
         ne12/np6/kgu35,86400/262 ne16/np5/kgu35,86400/238 ne10/np8/kgu35,86400/457 ne12/np8/kgu35 \
         ne12/np8/imex,86400/180 ne24/np6/kgu35,86400/524 ne26/np6/kgu35,86400/568 --results peer_dinosaur_best_step
 
 T213 (``peer_dinosaur_best_step_t213.json``; its reference step the default 300 s, not half of it, to save
 time), and the best steps' costs again in two rounds (``peer_dinosaur_best_step_rounds.json``)::
 
-    python benchmarks/peer_dinosaur.py --best-step --truncations T213 --reference-dt 300 \
+    python benchmarks/peers/peer_dinosaur.py --best-step --truncations T213 --reference-dt 300 \
         --swe ne30/np6/kgu35,86400/655 --results peer_dinosaur_best_step_t213
-    python benchmarks/peer_dinosaur.py --truncations T42 T85 T170 --peer-dt 7200 2400 900 --swe ne16/np5/kgu35,86400/238 \
+    python benchmarks/peers/peer_dinosaur.py --truncations T42 T85 T170 --peer-dt 7200 2400 900 --swe ne16/np5/kgu35,86400/238 \
         ne12/np8/kgu35 ne26/np6/kgu35,86400/568 --rounds 2 --results peer_dinosaur_best_step_rounds
 
 **On a GPU** (``--device cuda``, issue 67: the peer on the same card in the same call): the peer
@@ -105,9 +105,9 @@ under JAX on CUDA (``JAX_PLATFORMS=cuda``, no preallocation), swe_sphere's runs 
 ``device="cuda"``, each figure the wall seconds of the same loop (the peer's compiled
 ``jax.lax.scan``, compilation excluded; swe_sphere's step loop from day 1), still one host core.
 The GPU machine's image has JAX with its CUDA plugin; Dinosaur and what it imports beyond the
-image travel as wheels (``benchmarks/gpu_session.sh`` part ``dinosaur``; ``--python python3``).
+image travel as wheels (``benchmarks/gpu/gpu_session.sh`` part ``dinosaur``; ``--python python3``).
 
-    python benchmarks/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
+    python benchmarks/peers/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
         [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ne12/np8/imex,480,imex.scheme=ars232 ...]
         [--peer-dt DT ... | --best-step [--reference-dt DT ...] [--peer-steps DT ...] [--tolerance 0.01]]
         [--rounds 1] [--python /work/venvs/dinosaur/bin/python] [--device cpu|cuda]
@@ -146,7 +146,7 @@ DAY_STEPS = (300.0, 450.0, 600.0, 720.0, 900.0, 1200.0, 1440.0, 1800.0, 2400.0, 
 class Study:
     """A case as this benchmark runs it: swe_sphere's scene, the day scored, the field scored
     (a key of ``scores``' dict), its name, swe_sphere's default configurations (``parse_swe``)
-    and the results file's stem (``benchmarks/results/<stem>.json``)."""
+    and the results file's stem (``benchmarks/results/peer_dinosaur/<stem>.json``)."""
 
     scene: str
     days: float
@@ -253,8 +253,7 @@ def at_limit(study: str, config: str) -> tuple[str, float | None]:
     if at and any("=" not in r for r in rest):
         raise ValueError(f"--swe {config!r}: STEPPER@F is its Δt; give one or the other")
     ne, np_, stepper, dt, _ = parse_swe(",".join([head, *rest]))
-    from swe_sphere.config.scene import load_scene
-    from swe_sphere.steppers import STEPPERS
+    from swe_sphere import STEPPERS, load_scene
     from swe_sphere.studies.frontier import stable_dt
     from swe_sphere.studies.sweep import explicit_limits
 

@@ -42,9 +42,9 @@ when absent (Debian packages, root, 3–5 minutes on 2 cores; ``--build-dir``,
 default ``~/.cache/swe_sphere/homme``). Where it cannot, it prints one line with
 the reason and exits 0.
 
-    python benchmarks/peer_homme.py [--rounds 3] [--homme PATH] [--no-l2]
+    python benchmarks/peers/peer_homme.py [--rounds 3] [--homme PATH] [--no-l2]
 
-**Galewsky** (``--case galewsky``; figures in ``benchmarks/results/peer_homme_galewsky.json``):
+**Galewsky** (``--case galewsky``; figures in ``benchmarks/results/peer_homme/peer_homme_galewsky.json``):
 HOMME's own Galewsky et al. (2004) set-up, test case ``swsj1`` (``shallow_water_mod``'s
 ``sj1_init_state``): the jet u0 = 80 m/s between π/7 and 5π/14, h from gradient-wind balance
 (a 200-point Gauss integral at each node) shifted to a mean depth of 10 km (the mean of the
@@ -69,7 +69,7 @@ simulated day past the first, without start-up (HOMME's ``swsj1`` start-up alone
 element). swe_sphere's ``--swe`` runs (``peer_dinosaur.run_swe``: its step loop's CPU clock
 between day 1 and day 6, one thread pinned to core 0), interleaved with HOMME's::
 
-    python benchmarks/peer_homme.py --case galewsky [--runs ne16/rk3/150] [--swe ne16/np4/kgu35,150]
+    python benchmarks/peers/peer_homme.py --case galewsky [--runs ne16/rk3/150] [--swe ne16/np4/kgu35,150]
 """
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ HOMME comes as for ``peer_homme.py`` (``--homme``, ``--kit``, ``--build-dir``); 
 ``meshes/`` folder beside the kit). Where either cannot be
 had, one line with the reason and exit 0.
 
-    python benchmarks/peer_homme_rrm.py [--rounds 5] [--days 4] [--homme PATH] [--no-np]
+    python benchmarks/peers/peer_homme_rrm.py [--rounds 5] [--days 4] [--homme PATH] [--no-np]
 """
 
 from __future__ import annotations
@@ -101,8 +101,8 @@ from peer_homme import ONE_CORE, SWE_CHILD, Skip, add_homme_options, default_kit
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
 from results import recorded
 
+from swe_sphere import CubedSphere
 from swe_sphere.core.constants import EARTH
-from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.quality import element_sizes
 from swe_sphere.mesh.cube import cube_mesh
 from swe_sphere.mesh.mesh import read_exodus

@@ -18,11 +18,11 @@ rounds over every ``--stride``-th solve), the set-up (once a run) per solve of a
 and a lower bound as kernels: iterations × (the model's CG iteration + blocks' batched 16×16
 products, or p-MG's 6 model products and its coarse V-cycle). The random-right-hand-side study
 before it (Chebyshev, low-order-refined and AMG preconditioners, the weak Laplacian, the
-spectra) is in git history (``git log -- benchmarks/helmholtz_preconditioners.py``).
+spectra) is in git history (``git log -- benchmarks/studies/helmholtz_preconditioners.py``).
 CPU clock (``time.process_time``); run with one thread:
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --record /tmp/solves.npz
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/helmholtz_preconditioners.py --solves /tmp/solves.npz
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --record /tmp/solves.npz
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --solves /tmp/solves.npz
 """
 
 from __future__ import annotations
@@ -43,14 +43,15 @@ from threadpoolctl import threadpool_limits
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import DAY, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.constants import DAY  # noqa: E402
+from swe_sphere import (  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.grid.gll import gll  # noqa: E402
 from swe_sphere.model.gravity_wave import GravityWaveOperator  # noqa: E402
 from swe_sphere.model.helmholtz import HelmholtzOptions, HelmholtzSolver  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.solvers.helmholtz_matrix import helmholtz_matrix  # noqa: E402
 
 SGS = ("gauss_seidel", {"sweep": "symmetric"})

@@ -41,12 +41,12 @@ for the targets' idle machine with several threads (process time sums them).
 ``--device cuda`` times on the GPU by the wall clock, the device synchronised
 around every timed call (so the parts add up; the syncs cost a few µs each).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu
-    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --clock cpu --precision double mixed
-    SWE_SPHERE_THREADS=1 python benchmarks/implicit_cost.py --ne 16 --cases tc5_mountain --steppers epi2 epi3 CN \
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --clock cpu
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --clock cpu --precision double mixed
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --ne 16 --cases tc5_mountain --steppers epi2 epi3 CN \
         --krylov host kernels --explicit kgu35@900 rk4@350
-    SWE_SPHERE_THREADS=2 python benchmarks/implicit_cost.py --clock wall
-    python benchmarks/implicit_cost.py --device cuda
+    SWE_SPHERE_THREADS=2 python benchmarks/studies/implicit_cost.py --clock wall
+    python benchmarks/studies/implicit_cost.py --device cuda
 """
 
 from __future__ import annotations
@@ -69,8 +69,10 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
 from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
+from swe_sphere import (  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.solvers import jacobian, krylov  # noqa: E402
 
 # case → (label, stepper, Δt/Δt_g, options)

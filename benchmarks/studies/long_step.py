@@ -7,7 +7,7 @@ scene's, e.g. ``kgu35@86400/548:hyperviscosity.every=12``) of ``--scene`` (defau
 ``galewsky``, its own grid unless ``--ne``/``--np``) for ``--days``, scored at the last day by
 Williamson et al. (1992) eq. 83 at the model's own unique nodes with its assembled ``spheremp``
 (the run file's ``area``) against the bundled T341 reference (``cases.reference``): relative
-vorticity and h + hs, the scorer of ``benchmarks/peer_dinosaur.py``. Beside each: steps a day,
+vorticity and h + hs, the scorer of ``benchmarks/peers/peer_dinosaur.py``. Beside each: steps a day,
 the Helmholtz CG iterations a step, CPU seconds of the step loop a simulated day (the run's own
 ledger, day 1 to the last), or the day it blew up.
 
@@ -25,9 +25,9 @@ factorisation's CPU seconds and one solve's milliseconds against a CG solve from
 1e-6 (``HelmholtzCG.solve``, the model's compiled CG).
 
 One thread (``SWE_SPHERE_THREADS=1``; BLAS limited to one), CPU clock; figures to
-``benchmarks/results/long_step[_STEM].json``::
+``benchmarks/results/long_step/long_step[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/long_step.py --parts cost direct accuracy \\
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/studies/long_step.py --parts cost direct accuracy \\
         --runs kgu35@86400/548 imex@86400/274 imex@86400/137 imex@86400/90 imex@86400/80 imex@86400/70
 """
 
@@ -50,17 +50,19 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import DAY, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
 # isort: split
 from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 
+from swe_sphere import (  # noqa: E402
+    ArgumentError,
+    BlowUp,
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.cases.reference import Reference, reference_path, stored_days  # noqa: E402
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.constants import DAY  # noqa: E402
-from swe_sphere.core.errors import ArgumentError, BlowUp  # noqa: E402
 from swe_sphere.model.helmholtz_cg import HelmholtzCG  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 ARS343_GAMMA = 0.4358665215084590  # ARS(3,4,3)'s diagonal (Ascher, Ruuth & Spiteri 1997, §2.7)
 

@@ -1,7 +1,7 @@
 """The accuracy of ``--precision float32`` (issue 114, item 5): each row a scene and grid run
 twice, float64 and float32, the same in everything else, one after the other in one process.
 
-    SWE_SPHERE_THREADS=1 python benchmarks/precision_accuracy.py [--rows ROW|GROUP ...] [--keep DIR]
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/precision_accuracy.py [--rows ROW|GROUP ...] [--keep DIR]
 
 Rows (``--rows``; groups ``galewsky``, ``tc5``, ``tc6``, ``tc2``, ``tc2_np4``, ``tc2_np8``, ``all``,
 the default): Galewsky to day 6 at the grids that reach Dinosaur's T42, T85, T170 and T213 errors

@@ -24,10 +24,10 @@ cards, while the bare exchange is what the multi-GPU model of docs/scaling.md ne
 Steps are launched plainly (no graphs: a run over ranks takes none), the device drained
 before each clock read.
 
-    python benchmarks/scaling.py                          # ne 16 30 60 on 1 2 ranks
-    python benchmarks/scaling.py --ne 16 --ranks 1 2 3 4 6 --steps 20
-    python benchmarks/scaling.py --ne 256 --np 2 --ranks --model-ranks 96 384 1536   # partition only (docs/scaling.md)
-    python benchmarks/scaling.py --device cuda --ne 30 60 120 --ranks 1 2 --model-ranks --steps 50   # benchmarks/GPU.md
+    python benchmarks/studies/scaling.py                          # ne 16 30 60 on 1 2 ranks
+    python benchmarks/studies/scaling.py --ne 16 --ranks 1 2 3 4 6 --steps 20
+    python benchmarks/studies/scaling.py --ne 256 --np 2 --ranks --model-ranks 96 384 1536   # partition only (docs/scaling.md)
+    python benchmarks/studies/scaling.py --device cuda --ne 30 60 120 --ranks 1 2 --model-ranks --steps 50   # benchmarks/gpu/GPU.md
 
 The figures and the model built from them: ``docs/scaling.md``.
 """
@@ -52,7 +52,7 @@ from results import positive, recorded
 
 
 def partition_table(ne: int, np_: int, ranks: list[int]) -> None:
-    from swe_sphere.grid.cubed_sphere import CubedSphere
+    from swe_sphere import CubedSphere
     from swe_sphere.grid.partition import edge_cut
     from swe_sphere.grid.reductions import SerialComm
     from swe_sphere.grid.topology import Topology, rank_parts
@@ -90,10 +90,9 @@ def worker(ne: int, steps: int, device: str) -> None:
     wp.config.quiet = True
     from mpi4py import MPI
 
-    from swe_sphere.config.scene import load_scene
+    from swe_sphere import Simulation, load_scene
     from swe_sphere.core.backend import pick_device
     from swe_sphere.grid import halo
-    from swe_sphere.simulation.simulation import Simulation
 
     spent = [0.0, 0]
     real = halo.Exchange.launch
@@ -196,7 +195,7 @@ def main() -> None:
     p.add_argument("--steps", type=positive(int), default=10)
     p.add_argument("--repeat", type=positive(int), default=3)
     p.add_argument("--device", choices=["cpu", "cuda"], default="cpu", help="the ranks' device (default cpu)")
-    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem; a path: there)")
+    p.add_argument("--results", help="results/scaling/<STEM>.json (default: the script's stem; a path: there)")
     p.add_argument("--worker", nargs=3, help=argparse.SUPPRESS)
     a = p.parse_args()
     if a.worker:

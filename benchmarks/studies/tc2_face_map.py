@@ -24,7 +24,7 @@ refined-mesh element centroid). With ``--sweqx PATH`` (and ``--homme``), HOMME's
 ``sweqx`` in the same settings on the ne10 cube with ``cubed_sphere_map = 0`` and on the
 mountain mesh with 0 and 2 (``homme_maps``).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/tc2_face_map.py [--days 5] [--dt 90] [--homme [--sweqx PATH]]
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/tc2_face_map.py [--days 5] [--dt 90] [--homme [--sweqx PATH]]
 """
 
 from __future__ import annotations
@@ -58,11 +58,13 @@ from peer_homme_rrm import (  # noqa: E402
     kit_namelist,
 )
 
+from swe_sphere import (  # noqa: E402
+    SceneError,  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.cases.scoring import regional_l2  # noqa: E402
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.errors import SceneError  # noqa: E402
 from swe_sphere.grid.quality import REGIONS, element_regions, element_sizes  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 HOMME_SWTC2 = {"nu": 1e-9, "hypervis_scaling": 3.2, "hypervis_subcycle": 2}  # swtc2.nl's ∇⁴ (``peer_homme_rrm``)
 MOUNTAIN = REPO.parent / "shared" / "meshes" / "mountain_10_x2.g"

@@ -1,6 +1,6 @@
 """Warp's automatic differentiation of the CPU tendency kernel gives the hand-written transpose
 (``kernels.tendency_adjoint.element``) to round-off (issue 82, item 1's prototype; the pieces in
-warp_vjp.py, the figures in benchmarks/tendency_vjp.py)."""
+warp_vjp.py, the figures in benchmarks/micro/tendency_vjp.py)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The tendency's vector–Jacobian product through Warp's automatic differentiation (issue 82,
 item 1), beside the hand-written transpose (``kernels.tendency_adjoint.element``): shared by
-tests/adjoint/test_tendency_vjp.py and benchmarks/tendency_vjp.py.
+tests/adjoint/test_tendency_vjp.py and benchmarks/micro/tendency_vjp.py.
 
 The model's RHS is F = R Q W T(x) (``adjoint.reverse``); its VJP in the mass form takes μ to
 R Q Tᵀ(x) W μ. Both sides here stop before the unweighted DSS R Q, which they share: each

@@ -7,7 +7,7 @@ launch, ``--graphs on``), as it would come on a GPU: the run ends with the bits,
 RHS evaluations and solver iterations of a plain run (``--graphs off``) and
 exactly one warning line naming the feature. The CUDA twins run the same
 injections with CUDA graphs (skipped without a CUDA device;
-``benchmarks/gpu_session.sh tests`` runs them first).
+``benchmarks/gpu/gpu_session.sh tests`` runs them first).
 """
 
 from __future__ import annotations

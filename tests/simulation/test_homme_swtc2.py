@@ -1,6 +1,6 @@
 """TC2 in HOMME's own regression setup (``test/reg_test/namelists/swtc2.nl``) on E3SM's
 ``mountain_10_x2.g``: swe_sphere's day-1 errors of h are HOMME's ``sweqx``'s (skipped where the
-mesh is not beside the checkout; ``benchmarks/peer_homme_rrm.py`` runs both codes)."""
+mesh is not beside the checkout; ``benchmarks/peers/peer_homme_rrm.py`` runs both codes)."""
 
 from __future__ import annotations
 

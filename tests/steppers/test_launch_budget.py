@@ -4,7 +4,7 @@ TC5 np 4 at ne 2 (topography, ∇⁴), each stepper at the scene's defaults (its
 the scene's Δt rescaled to the grid), on the CPU: the third step's Warp launches, memsets and
 copies (``core.tally.Tally.total_launches``) after two that record and compile, the
 Helmholtz solve's own launches left out (it is a graph of its own on a card:
-``tally.paused``, as ``benchmarks/step_cost.py``'s "own launches"). The Newton-GMRES and
+``tally.paused``, as ``benchmarks/micro/step/step_cost.py``'s "own launches"). The Newton-GMRES and
 exponential steppers' Krylov iterations are part of their step and counted: their budgets
 hold for the iterations named beside them.
 

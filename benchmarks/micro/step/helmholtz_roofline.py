@@ -22,9 +22,9 @@ it, whose float32 form (half the bytes) is no faster, by the instructions around
 its gathers (``gid``, the DSS table) and its branches; one whose time stays as
 the grid shrinks, by launch overhead.
 
-    SWE_SPHERE_THREADS=1 python benchmarks/helmholtz_roofline.py --clock cpu
-    SWE_SPHERE_THREADS=2 python benchmarks/helmholtz_roofline.py --clock wall --threads 2
-    SWE_SPHERE_THREADS=1 python benchmarks/helmholtz_roofline.py --clock cpu --ne 30 --solve-only
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/step/helmholtz_roofline.py --clock cpu
+    SWE_SPHERE_THREADS=2 python benchmarks/micro/step/helmholtz_roofline.py --clock wall --threads 2
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/step/helmholtz_roofline.py --clock cpu --ne 30 --solve-only
 """
 
 from __future__ import annotations
@@ -44,9 +44,11 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
 from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere import (  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.model.helmholtz_cg import HelmholtzCG  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 TYPES = {"f64": wp.float64, "f32": wp.float32}
 

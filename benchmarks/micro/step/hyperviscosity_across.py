@@ -9,9 +9,9 @@ For each ``--case SCENE[:NE,NP]`` (the scene's own grid, or NE, NP), at the scen
 step (``time.process_time``, one thread) and the ratio, and the ∇⁴ evaluation alone (``operator``,
 ``--evals`` a round). The two give the same bits (tests/model/test_hyperviscosity_across.py); the
 run checks it on the states after the rounds. Figures to
-``benchmarks/results/hyperviscosity_across[_STEM].json``::
+``benchmarks/results/hyperviscosity_across/hyperviscosity_across[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 taskset -c 0 python benchmarks/hyperviscosity_across.py --case galewsky galewsky:25,6
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 taskset -c 0 python benchmarks/micro/step/hyperviscosity_across.py --case galewsky galewsky:25,6
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
 from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
+from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.model.hyperviscosity import Hyperviscosity  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 
 def case(text: str) -> tuple[str, dict]:

@@ -10,9 +10,9 @@ forward Euler; ``Hyperviscosity.plan``). The accuracy at each k is ``long_step.p
 (``--runs STEPPER@DT:hyperviscosity.every=K``). ``--filter MU ...``: beside them, the scene without
 its ∇⁴ and with the element filter ([filter] mu = MU) after every step instead (its accuracy:
 ``long_step.py --runs STEPPER@DT:terms=...:filter.mu=MU``). Figures to
-``benchmarks/results/hyperviscosity_every[_STEM].json``::
+``benchmarks/results/hyperviscosity_every/hyperviscosity_every[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/hyperviscosity_every.py --scene galewsky --every 1 6 12
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/step/hyperviscosity_every.py --scene galewsky --every 1 6 12
 """
 
 from __future__ import annotations
@@ -35,9 +35,11 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
 from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.errors import ArgumentError  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
+from swe_sphere import (  # noqa: E402
+    ArgumentError,  # noqa: E402
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 
 
 def arguments():

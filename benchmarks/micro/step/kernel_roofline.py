@@ -54,7 +54,7 @@ arrays fit the L3 at these grids) by bandwidth, one far below both by neither: b
 instructions (the gathers through the DSS table, the loads and shuffles of its rows, the
 divides), by latency, or by the loop Warp's CPU backend makes of it.
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/kernel_roofline.py \\
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/micro/step/kernel_roofline.py \\
         --ne 30 12 --np 4 8 --rounds 41 --inner 2
 
 ``--precisions float64 float32`` adds each grid's model with a float32 tendency (the tendency's
@@ -86,9 +86,9 @@ from results import positive, recorded  # noqa: E402  (after the path: benchmark
 import rhs_throughput  # noqa: E402  (benchmarks/: the triad)
 from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 
+from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.core.parallel import SplitLaunch  # noqa: E402
 from swe_sphere.core.tally import array_bytes  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 
 SCENES = {"tc5": "tc5_mountain", "galewsky": "galewsky"}  # Galewsky: TC5's terms less topography
 TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography")
@@ -223,7 +223,7 @@ def parse() -> argparse.Namespace:
         default=["float64"],
         help="the models' precisions (float32: a float32 tendency; its peak twice float64's lanes)",
     )
-    p.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    p.add_argument("--results", help="results/kernel_roofline/<STEM>.json (default: the script's stem)")
     args = p.parse_args()
     if len(args.ne) != len(args.np):
         p.error(f"--ne and --np pair up: {len(args.ne)} ne against {len(args.np)} np")

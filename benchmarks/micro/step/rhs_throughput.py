@@ -28,10 +28,10 @@ all threads), which a loaded machine does not inflate; use it with one thread
 The RHS table's flop/pt is counted by hand (``rhs_flops``), GFLOP/s uses the
 faster of the two Warp columns.
 
-    python benchmarks/rhs_throughput.py                     # ne 8 16 30, np 4 8; steps at ne 16 30
-    python benchmarks/rhs_throughput.py --ne 60 --np 4 --step-ne 60
-    SWE_SPHERE_THREADS=1 python benchmarks/rhs_throughput.py   # pins "threads" to 1
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/rhs_throughput.py \
+    python benchmarks/micro/step/rhs_throughput.py                     # ne 8 16 30, np 4 8; steps at ne 16 30
+    python benchmarks/micro/step/rhs_throughput.py --ne 60 --np 4 --step-ne 60
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/step/rhs_throughput.py   # pins "threads" to 1
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/micro/step/rhs_throughput.py \
         --clock cpu --ne 30 --np 4 --step-ne 30 --steppers rk4 ssprk3 kgu35 fbrk32 leapfrog leapfrog_trapezoidal
 """
 
@@ -54,16 +54,18 @@ sys.path.insert(
 )  # numpy_ops; not the repo root, which would shadow the installed package
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import positive, quiet_warp, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
+from swe_sphere import (  # noqa: E402
+    STEPPERS,
+    CubedSphere,  # noqa: E402
+    ShallowWater,  # noqa: E402
+    load_scene,  # noqa: E402
+    make_stepper,
+)
 from swe_sphere.core.backend import Backend, default_device  # noqa: E402
 from swe_sphere.core.parallel import SplitLaunch  # noqa: E402
-from swe_sphere.core.runtime import init_warp  # noqa: E402
 from swe_sphere.core.tally import array_bytes  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
-from swe_sphere.model.shallow_water import ShallowWater  # noqa: E402
-from swe_sphere.steppers import STEPPERS, make_stepper  # noqa: E402
 
 from numpy_ops import NumpyOps  # noqa: E402
 
@@ -299,7 +301,7 @@ def main(argv=None):
     args = p.parse_args(argv)
     global clock
     clock = CLOCKS[args.clock]
-    init_warp()  # quietly
+    quiet_warp()  # quietly
     threads = args.threads or Backend.of(args.device).threads()
     print(
         f"Warp {wp.__version__}, device {args.device}, threads {threads}, {args.clock} clock, load average {os.getloadavg()[0]:.2f}"

@@ -12,8 +12,8 @@ a simulated day. One step after two (recorded and compiled outside the count), b
 included). ``--rounds`` > 0: also ms an evaluation and a step, round-robin over all of them
 so that load changes hit them alike, median, CPU clock (run it single-threaded).
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/step_cost.py --ne 8
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/step_cost.py --ne 30 --rounds 5
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/step/step_cost.py --ne 8
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/step/step_cost.py --ne 30 --rounds 5
 """
 
 from __future__ import annotations
@@ -33,13 +33,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests" / "steppers
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests"))
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import quiet_warp, recorded  # noqa: E402  (after the path: benchmarks/ first)
 from test_tableau import ars343_pair, example  # noqa: E402
 
-from swe_sphere.config.scene import load_scene  # noqa: E402
-from swe_sphere.core.runtime import init_warp  # noqa: E402
+from swe_sphere import (
+    Simulation,  # noqa: E402
+    load_scene,  # noqa: E402
+)
 from swe_sphere.core.tally import Tally, instrumented  # noqa: E402
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
 from swe_sphere.steppers.multirate import GravitySplit  # noqa: E402
 from swe_sphere.studies.sweep import explicit_limits  # noqa: E402
 
@@ -78,7 +79,7 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=10, help="evaluations or steps a configuration and round")
     p.add_argument("--rounds", type=int, default=0, help="timing rounds (0: counts only)")
     args = p.parse_args()
-    init_warp()  # quietly
+    quiet_warp()  # quietly
     base = load_scene("tc5_mountain", ne=args.ne, np_=4)
     dt_g = explicit_limits(base, "cpu")["dt_gravity"]
     tally = Tally()

@@ -8,9 +8,9 @@ step spends outside them (Python, the stepper's bookkeeping). A kernel here read
 passes before it left in the caches, which is why its figure differs from
 ``kernel_roofline.py``'s (each kernel alone, repeated): e.g. Galewsky's DSS update 0.66 ms a call
 in the step against 0.40 alone. One thread: run it with ``SWE_SPHERE_THREADS=1``. Figures to
-``benchmarks/results/step_parts[_STEM].json``::
+``benchmarks/results/step_parts/step_parts[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/step_parts.py --scene galewsky
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/step/step_parts.py --scene galewsky
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ wp.config.quiet = True
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
 from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.simulation.simulation import Simulation  # noqa: E402
+from swe_sphere import Simulation  # noqa: E402
 
 
 def arguments():

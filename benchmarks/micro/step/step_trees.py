@@ -9,9 +9,9 @@ tree (``git archive COMMIT | tar -x -C DIR``, with ``swe_sphere/testcases`` link
 recorded), then times ``--steps`` steps by the process's CPU clock; ``--rounds`` rounds take the
 trees in turn, so that a change of load hits them alike. Medians, ms a step, and each tree's
 ratio to the first. Between processes a step's time moves by up to ±25 % on a shared VM: quote
-the medians of several rounds. Figures to ``benchmarks/results/step_trees[_STEM].json``::
+the medians of several rounds. Figures to ``benchmarks/results/step_trees/step_trees[_STEM].json``::
 
-    python benchmarks/step_trees.py --scene galewsky tc5_mountain --source /tmp/old /tmp/new --rounds 5
+    python benchmarks/micro/step/step_trees.py --scene galewsky tc5_mountain --source /tmp/old /tmp/new --rounds 5
 """
 
 from __future__ import annotations

@@ -15,9 +15,9 @@ evaluations a step (``Hyperviscosity.plan``: forward-Euler substeps, or RKL1 sta
 time a step, medians of interleaved rounds.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/tensor_hyperviscosity_cost.py --ne 16
+        python benchmarks/micro/step/tensor_hyperviscosity_cost.py --ne 16
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/tensor_hyperviscosity_cost.py --mesh PATH/mountain_10_x2.g --multiples 1 1.66
+        python benchmarks/micro/step/tensor_hyperviscosity_cost.py --mesh PATH/mountain_10_x2.g --multiples 1 1.66
 """
 
 from __future__ import annotations
@@ -34,14 +34,10 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere import CubedSphere, ShallowWater, Simulation, load_scene
 from swe_sphere.model.diagnostics import harmonic_state
-from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.studies.sweep import explicit_limits
 
 SCALINGS = (None, 3.2, 4.0)  # constant ν, E3SM's production s, the e-fold rule element by element
@@ -98,7 +94,7 @@ def main() -> None:
     parser.add_argument("--multiples", type=float, nargs="+", default=[1.0], help="steps in dt_g")
     parser.add_argument("--steps", type=int, default=10, help="steps a round (--mesh)")
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     if args.mesh:
         mesh_steps(args)
         return

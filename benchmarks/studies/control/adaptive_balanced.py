@@ -4,7 +4,7 @@ temporal error at about f of the spatial one, and what does it cost against the 
 cheapest qualifying fixed-Δt run?
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/adaptive_balanced.py [--ne 16] [--cases tc5 tc6 galewsky] [--balances 0.1]
+        python benchmarks/studies/control/adaptive_balanced.py [--ne 16] [--cases tc5 tc6 galewsky] [--balances 0.1]
 
 Every run in this process at ``--ne`` np4 over the sweep's lengths (TC5 15 days, TC6 14,
 Galewsky 6; docs/efficiency/sweep.md), one thread, its CPU clock
@@ -35,9 +35,7 @@ from pathlib import Path
 from adaptive_proportionality import build, fixed_dt, run, temporal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
-
-from swe_sphere.core.runtime import init_warp
+from results import quiet_warp, recorded
 
 CASES = {  # label: (scene, days, the sweep's cheapest qualifying fixed run at ne16 on h + hs)
     "tc5": ("tc5_mountain", 15.0, "rk4@0.69"),
@@ -94,7 +92,7 @@ def main() -> None:
     parser.add_argument("--balances", nargs="+", type=float, default=[0.1])
     parser.add_argument("--results", help="the results file's stem (default adaptive_balanced)")
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         for stepper in ("rk4", "kgu35", "fbrk32", *args.pairs):  # compiled before any timing

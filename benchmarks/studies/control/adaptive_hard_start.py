@@ -14,7 +14,7 @@ ne ``--ne`` np 4) and each embedded pair (``--pairs``), three runs under ``time.
 Printed per run: finished or the blow-up's line, accepted and rejected steps, CPU s (one
 thread, ``time.process_time``), the ratio to the run from the stable step.
 
-    SWE_SPHERE_THREADS=1 python benchmarks/adaptive_hard_start.py [--ne 8] [--rtol 1e-4] [--pairs ...] [--results STEM]
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/control/adaptive_hard_start.py [--ne 8] [--rtol 1e-4] [--pairs ...] [--results STEM]
 """
 
 from __future__ import annotations
@@ -27,12 +27,10 @@ from pathlib import Path
 from adaptive_proportionality import build, run
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.runtime import init_warp
+from swe_sphere import STEPPERS, load_scene
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.steppers import STEPPERS
 from swe_sphere.studies.sweep.runs import explicit_limits
 
 CASES = ("tc5_mountain", "tc6_rossby_haurwitz", "tc6_rossby_haurwitz_inviscid", "galewsky")
@@ -88,12 +86,12 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", default=list(CASES))
     parser.add_argument("--pairs", nargs="+", default=["bs32", "rdpk3sp35", "ssprk43", "dp54"])
     parser.add_argument("--rtol", type=float, default=1e-4)
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--results", help="results/adaptive_hard_start/<STEM>.json (default: the script's stem)")
     args = parser.parse_args()
     unknown = [pair for pair in args.pairs if pair not in STEPPERS]
     if unknown:
         parser.error(f"--pairs: unknown {', '.join(unknown)} (the steppers: swe-sphere list)")
-    init_warp()
+    quiet_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["rtol"], figures["ne"] = args.rtol, args.ne

@@ -4,7 +4,7 @@ qualifying fixed-Δt run, on TC5 and Galewsky, and the share of steps rejected; 
 over time from the same runs.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/adaptive_ne30.py [--cases tc5 galewsky] [--tc5-days 5] [--galewsky-days 6]
+        python benchmarks/studies/control/adaptive_ne30.py [--cases tc5 galewsky] [--tc5-days 5] [--galewsky-days 6]
 
 Every run in this process at ne30 np4 (given, not the scenes' grids), one thread, its CPU clock
 (``time.process_time`` of ``Simulation.run``; each stepper warmed first by a short run); no run
@@ -49,10 +49,7 @@ from pathlib import Path
 from adaptive_proportionality import build, fixed_dt, run, temporal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
-
-from swe_sphere.core.constants import DAY
-from swe_sphere.core.runtime import init_warp
+from results import DAY, quiet_warp, recorded
 
 NE = 30
 CASES = {  # label: (scene, its spectral reference: T213, the one that stores TC5's day 5; T341 has days 1 and 15)
@@ -229,7 +226,7 @@ def main() -> None:
         "--results", help="the results file's name (default adaptive_ne30; with --dt-runs adaptive_ne30_dt)"
     )
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     stem = args.results or ("adaptive_ne30_dt" if args.dt_runs else None)
     with recorded(__file__, stem) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)

@@ -2,7 +2,7 @@
 the cost against the best fixed step, and a run started far above its stable step.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/adaptive_proportionality.py [--ne 8] [--tc2-days 5] [--tc5-days 5]
+        python benchmarks/studies/control/adaptive_proportionality.py [--ne 8] [--tc2-days 5] [--tc5-days 5]
 
 Every run is in this process, one thread, timed with its CPU clock (``time.process_time`` of
 ``Simulation.run``; each stepper warmed once first so that no kernel compiles inside a timing);
@@ -43,13 +43,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
+from swe_sphere import BlowUp, Simulation, load_scene
 from swe_sphere.cases.scoring import williamson_norms
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.errors import BlowUp
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.simulation.simulation import Simulation
 
 DAY = 86400.0
 SNAPSHOT = 10800.0  # s: the sweep's 3-hourly snapshots, which its fixed Δt divide
@@ -342,7 +339,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     args.pair_rtols = {k: [float(r) for r in v.split(",")] for k, v in (a.split("=") for a in args.pair_rtols)}
-    init_warp()
+    quiet_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         warm("tc5_mountain", args.ne, sorted({s.split("@")[0] for s in args.fixed} | set(args.pairs)))

@@ -2,7 +2,7 @@
 itself, at ne30.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/control_overhead.py [--ne 30] [--control error cfl] [--pair bs32] [--rtol 1e-5]
+        python benchmarks/studies/control/control_overhead.py [--ne 30] [--control error cfl] [--pair bs32] [--rtol 1e-5]
             [--cfl-stepper ssprk3] [--cfl 1.0] [--days 0.5]
 
 TC5 (``tc5_mountain``), np4, one thread, CPU clock (``time.process_time``), every run in this
@@ -54,13 +54,11 @@ from pathlib import Path
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.runtime import init_warp
+from swe_sphere import Simulation, load_scene
 from swe_sphere.integrator.control import on_grid
 from swe_sphere.simulation import checkpoint
-from swe_sphere.simulation.simulation import Simulation
 
 
 def build(args, days, dt=None, control=True) -> Simulation:
@@ -272,12 +270,12 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=40, help="calls timed in (b)")
     parser.add_argument("--parts", nargs="+", default=["a", "b"], choices=["a", "b", "g", "p"])
     parser.add_argument("--profile-rows", type=int, default=25, help="functions (p) prints a run")
-    parser.add_argument("--results", help="results/<STEM>.json (default: the script's stem)")
+    parser.add_argument("--results", help="results/control_overhead/<STEM>.json (default: the script's stem)")
     parser.add_argument("--device", default="cpu", help="cpu (CPU clock) or cuda (wall clock)")
     args = parser.parse_args()
     global DEVICE
     DEVICE = args.device
-    init_warp()
+    quiet_warp()
     with recorded(__file__, stem=args.results) as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["args"] = vars(args)

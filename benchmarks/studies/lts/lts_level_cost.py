@@ -11,7 +11,7 @@ the whole-grid ``rhs``; µs per element evaluated and the ratio to the whole gri
 interleaved so that load changes hit all alike; medians; the load average printed.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/lts_level_cost.py --mesh PATH/mountain_10_x2.g
+        python benchmarks/studies/lts/lts_level_cost.py --mesh PATH/mountain_10_x2.g
 """
 
 from __future__ import annotations
@@ -29,10 +29,9 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests"))
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import quiet_warp, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
-from swe_sphere.core.runtime import init_warp  # noqa: E402
-from swe_sphere.grid.cubed_sphere import CubedSphere  # noqa: E402
+from swe_sphere import CubedSphere  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_rates  # noqa: E402
 from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
 from swe_sphere.model.shallow_water import ElementPart  # noqa: E402
@@ -52,7 +51,7 @@ def main() -> None:
         "--gap", type=int, nargs="+", default=[0, 4, 16, 64], help="merge a level's ranges over gaps up to"
     )
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     grid = CubedSphere(0, 4, mesh=read_exodus(args.mesh))
     case, model = case_model(grid, "tc5_mountain", TC5_TERMS, threads=1)
     x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))

@@ -7,7 +7,7 @@ rank's work over the mean (work: Σ 2^level over its elements, the evaluations o
 step), each level's largest share over the mean, and the element pairs that share a node
 across ranks (what the DSS exchanges grow with). No timing: the figures are the partition's.
 
-    python benchmarks/lts_partition.py --mesh MESH.g [--ranks 2 3 4 8]
+    python benchmarks/studies/lts/lts_partition.py --mesh MESH.g [--ranks 2 3 4 8]
 """
 
 from __future__ import annotations
@@ -21,10 +21,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
 from results import recorded
 
-from swe_sphere.config.scene import load_scene
+from swe_sphere import Simulation, load_scene
 from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates
 from swe_sphere.grid.topology import rank_parts
-from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers.local import size_levels
 
 

@@ -8,7 +8,7 @@ the mean ``time.process_time`` of ``--calls`` calls: a step, the ∇⁴ over dt
 ``rhs_part`` (times its 2^k evaluations a step) and each level's sums at each of the 2^K
 finest sub-steps. A step's dynamics is the step less the ∇⁴.
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/lts_step_cost.py \\
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/lts/lts_step_cost.py \\
         --mesh PATH/mountain_10_x2.g --dt 234.783 --stepper lts --options '{"method": "mrab3", "level_margin": 1.3}'
 """
 
@@ -24,11 +24,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import recorded
+from results import quiet_warp, recorded
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.simulation.simulation import Simulation
+from swe_sphere import Simulation, load_scene
 
 DAY = 86400.0
 
@@ -55,7 +53,7 @@ def main() -> None:
     parser.add_argument("--calls", type=int, default=20)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     days = 8 * args.dt / DAY  # whole steps
     scene = load_scene("tc5_mountain", mesh=args.mesh, dt=args.dt, days=days, stepper=args.stepper)
     if args.hypervis_scaling is not None:

@@ -10,7 +10,7 @@ not blown up yet can be far off), and at that Δt the median CPU time (``time.pr
 of ``Simulation.run``, one thread) of ``--rounds`` runs. The load average is printed.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/lts_study.py --mesh PATH/mountain_10_x2.g --days 3
+        python benchmarks/studies/lts/lts_study.py --mesh PATH/mountain_10_x2.g --days 3
 """
 
 from __future__ import annotations
@@ -27,12 +27,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded
+from results import positive, quiet_warp, recorded
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.core.errors import BlowUp
-from swe_sphere.core.runtime import init_warp
-from swe_sphere.simulation.simulation import Simulation
+from swe_sphere import BlowUp, Simulation, load_scene
 
 DAY = 86400.0
 STEPPERS = {  # label → (stepper, options)
@@ -102,7 +99,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--only", nargs="*", help="these steppers' labels alone (and rk4, the reference)")
     args = parser.parse_args()
-    init_warp()
+    quiet_warp()
     ref = run(args.mesh, args.days, "rk4", {}, args.k_ref)[0]
     rows = []
     for label, (stepper, options) in STEPPERS.items():

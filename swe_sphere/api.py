@@ -142,11 +142,15 @@ def state_source(scene, overrides: dict):
         return
     keywords = {name: overrides.pop(key) for key, name in LOAD_KEYWORDS.items() if key in overrides}
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
-        if isinstance(scene, xr.Dataset):
-            path = Path(tmp) / "dataset.nc"
-            scene.to_netcdf(path)
-            scene = path
-        yield state_scene(scene, flat_overrides(overrides), **keywords), {}
+        if not isinstance(scene, xr.Dataset):
+            yield state_scene(scene, flat_overrides(overrides), **keywords), {}
+            return
+        path = Path(tmp) / "dataset.nc"
+        scene.to_netcdf(path)
+        try:
+            yield state_scene(path, flat_overrides(overrides), **keywords), {}
+        except SceneError as err:  # the Dataset's refusals name it, not the temporary file that holds it
+            raise SceneError(str(err).replace(f"initial file {path}", "the Dataset given")) from None
 
 
 __all__ = ["run"]

@@ -32,6 +32,11 @@ _TRUNCATION = re.compile(r"T\d+")  # a bundled reference's short name: its trunc
 _PAD = 6  # grid rows/columns added across each pole and each longitude edge
 _DAY_TOL = 1e-6
 _EPSILON = 1e-12  # ducc0's synthesis accuracy (relative): far below the float32 coefficients' 6e-8
+# ducc0's oversampling of the points' NUFFT, held at one value: left free (1.1-2.6) it picks the
+# cheapest kernel for the number of points, so a node's value changed (by 1e-9 m of h at T24) with
+# how many nodes a rank asked for; held, each node's value is its own (the same bits on any rank
+# count), as accurate (4e-13 of the largest value from the free choice at T24-T341) and as fast
+_SIGMA = (2.0, 2.001)
 
 
 def stored_index(days: np.ndarray, day: float) -> int | None:
@@ -186,13 +191,16 @@ def synthesis(alm: np.ndarray, lmax: int, lat, lon, gradient: bool = False) -> n
     """Σ alm Y_lm (nalm,) complex, healpy's m-major order up to ``lmax``, orthonormal harmonics,
     a real field Σ_l [a_l0 Y_l0 + 2 Re Σ_{m≥1} a_lm Y_lm]) at the points ``lat``, ``lon`` (1-D,
     radians, lon in [0, 2π)), (n,); or with ``gradient`` its (∂/∂θ, ∂/∂λ / sin θ) (2, n) on the
-    unit sphere. By ``ducc0.sht.synthesis_general`` to a relative accuracy of 1e-12."""
+    unit sphere. By ``ducc0.sht.synthesis_general`` to a relative accuracy of 1e-12, each point's
+    value the same whatever other points are asked for (``_SIGMA``)."""
     loc = np.stack([np.clip(math.pi / 2 - lat, 0.0, math.pi), lon], axis=1)
     out = ducc0.sht.synthesis_general(
         alm=alm[None],
         lmax=lmax,
         loc=loc,
         epsilon=_EPSILON,
+        sigma_min=_SIGMA[0],
+        sigma_max=_SIGMA[1],
         spin=1 if gradient else 0,
         mode="DERIV1" if gradient else "STANDARD",
     )

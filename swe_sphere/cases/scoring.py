@@ -118,7 +118,7 @@ def unscored(case, day: float, reference) -> str | None:
     if case.exact_solution:
         return None
     if reference is None:
-        return f"{type(case).__name__} has no exact solution and no reference file"
+        return "the case has no exact solution and no reference file (case.reference names one)"
     path = Path(reference)
     days = stored_days(path)
     if stored_index(days, day) is not None:

@@ -60,10 +60,10 @@ STANDARD = {
     "surface": ("surface_altitude", "surface_geopotential", "geopotential", "height_above_mean_sea_level"),
 }
 WHAT = {
-    "height": "the geopotential (m2 s-2) or geopotential height (m)",
-    "u": "the eastward wind u (m s-1)",
-    "v": "the northward wind v (m s-1)",
-    "surface": "the surface height (m) or surface geopotential (m2 s-2)",
+    "height": "geopotential (m2 s-2) or geopotential height (m)",
+    "u": "eastward wind u (m s-1)",
+    "v": "northward wind v (m s-1)",
+    "surface": "surface height (m) or surface geopotential (m2 s-2)",
 }
 LEVEL_NAMES = ("level", "lev", "plev", "pressure_level", "isobaricInhPa", "pressure", "pres")
 # a ring layout's (ducc0's geometry's) highest degree analysed exactly from n rings
@@ -226,12 +226,14 @@ def _horizontal(ds: _Source, var: _Variable, where: str) -> tuple[str, str]:
 
 
 def _select(ds: _Source, var: _Variable, level, time, where: str):
-    """(values (lat, lon), its latitude and longitude dimensions) of ``var`` at ``level`` (hPa)
-    and ``time`` (module docstring), its other dimensions gone."""
+    """(values (lat, lon), its latitude and longitude dimensions, the pressure level taken in hPa
+    or None where the file does not say) of ``var`` at ``level`` (hPa) and ``time`` (module
+    docstring), its other dimensions gone."""
     lat, lon = _horizontal(ds, var, where)
     values, dims = var.values(), list(var.dims)
     rest = [d for d in dims if d not in (lat, lon)]
     vertical = next((d for d in rest if d in LEVEL_NAMES or _pressure_factor(ds, d) is not None), None)
+    taken = None if level is None else float(level)
 
     def take(dim, index):
         nonlocal values
@@ -254,12 +256,14 @@ def _select(ds: _Source, var: _Variable, level, time, where: str):
         take(dim, _at_time(ds, dim, value.strip(), where))
     for dim in list(rest):
         if ds.sizes[dim] == 1:
+            if dim == vertical and _pressure_factor(ds, dim) is not None:
+                taken = float(_hpa(ds, dim)[0])
             take(dim, 0)
         elif dim == vertical:
-            raise SceneError(f"{where}: {var.name} is 3-D: give a level (hPa; the file has {_shown(ds, dim)})")
+            raise SceneError(f"{where}: {var.name} is 3-D: give a level (hPa; the file has {_shown_hpa(ds, dim)})")
         else:
             raise SceneError(f"{where}: {var.name} has {ds.sizes[dim]} {dim} values: give a time ({_shown(ds, dim)})")
-    return (values if dims == [lat, lon] else values.T), lat, lon
+    return (values if dims == [lat, lon] else values.T), lat, lon, taken
 
 
 def _pressure_factor(ds: _Source, dim) -> float | None:
@@ -268,10 +272,19 @@ def _pressure_factor(ds: _Source, dim) -> float | None:
     return None if units is None else PRESSURE_UNITS.get(normal(units))
 
 
-def _shown(ds: _Source, dim) -> str:
-    values = ds.coordinate(dim)
+def _shown(ds: _Source, dim, values=None, unit: str = "") -> str:
+    values = ds.coordinate(dim) if values is None else values
     text = [str(v)[:19] if np.issubdtype(values.dtype, np.datetime64) else f"{v:g}" for v in values[:8]]
-    return f"{dim} " + ", ".join(text) + (", ..." if values.size > 8 else "")
+    return f"{dim} " + ", ".join(text) + (", ..." if values.size > 8 else "") + unit
+
+
+def _hpa(ds: _Source, dim) -> np.ndarray:
+    """The pressure levels along ``dim`` in hPa (a coordinate without pressure units taken as hPa)."""
+    return np.asarray(ds.coordinate(dim), dtype=np.float64) * (_pressure_factor(ds, dim) or 1.0)
+
+
+def _shown_hpa(ds: _Source, dim) -> str:
+    return _shown(ds, dim, _hpa(ds, dim), " hPa")
 
 
 def _at_level(ds: _Source, var: _Variable, vertical, level: float, where: str) -> int | None:
@@ -284,11 +297,13 @@ def _at_level(ds: _Source, var: _Variable, vertical, level: float, where: str) -
             if abs(value - level) < 1e-6:
                 return None
         raise SceneError(f"{where}: level {level:g} hPa: {var.name} has no vertical dimension (dimensions {var.dims})")
-    values = np.asarray(ds.coordinate(vertical), dtype=np.float64) * (_pressure_factor(ds, vertical) or 1.0)
+    values = _hpa(ds, vertical)
     hit = np.flatnonzero(np.abs(values - level) <= 1e-6 * max(1.0, level))
     if hit.size == 0:
         shown = ", ".join(f"{v:g}" for v in values)
-        raise SceneError(f"{where}: level {level:g} hPa is not in the file (levels {shown} hPa)")
+        pascal = np.any(np.abs(values - level / 100.0) <= 1e-6 * max(1.0, level / 100.0))
+        hint = f": the level is in hPa, {level / 100:g} here" if pascal else ""
+        raise SceneError(f"{where}: level {level:g} hPa is not in the file (levels {shown} hPa){hint}")
     return int(hit[0])
 
 
@@ -344,11 +359,44 @@ def _field(ds: _Source, role: str, level, time, where: str):
     name = _find(ds, role, where)
     var = ds.variables[name]
     scale = _scale(var, role, where)
-    values, phi0, rings, degree = _grid(ds, *_select(ds, var, level, time, where), where)
+    *selected, taken = _select(ds, var, level, time, where)
+    values, phi0, rings, degree = _grid(ds, *selected, where)
     bad = np.count_nonzero(~np.isfinite(values))
     if bad:
         raise SceneError(f"{where}: {name} has {bad} missing values (NaN or fill values): a state must be whole")
+    if role == "height" and taken is not None:
+        _plausible(values * scale / G0, var, taken, where)
     return values * scale, phi0, rings, degree
+
+
+def standard_height(level: float) -> float:
+    """The geopotential height (m) of the pressure ``level`` (hPa) in the ICAO standard atmosphere
+    (ICAO Doc 7488, 1993; the US Standard Atmosphere 1976 below 20 km): a lapse rate of 6.5 K km⁻¹
+    from 288.15 K and 1013.25 hPa to the tropopause at 11 km (226.32 hPa), isothermal (216.65 K) above."""
+    if level >= 226.32:
+        return 288.15 / 0.0065 * (1.0 - (level / 1013.25) ** (0.0065 * 287.05287 / G0))
+    return 11000.0 + 287.05287 * 216.65 / G0 * math.log(226.32 / level)
+
+
+PLAUSIBLE = 3.0  # heights within a factor of the standard atmosphere's: g ≈ 9.8 mislabels lie outside
+PLAUSIBLE_FROM = 900.0  # hPa: below this the standard height (≥ 990 m) tells a factor; nearer the ground not
+
+
+def _plausible(heights: np.ndarray, var: _Variable, level: float, where: str) -> None:
+    """Refuse (``SceneError``) geopotential heights (m, (nlat, nlon)) whose mean at ``level`` (hPa)
+    is not within ``PLAUSIBLE`` times the standard atmosphere's: a geopotential labelled m (about
+    9.8 times too high: 49-58 km at 500 hPa) or a height labelled m2 s-2 (9.8 times too low)."""
+    if not 0.0 < level <= PLAUSIBLE_FROM:
+        return
+    standard, mean = standard_height(level), float(np.mean(heights))
+    if standard / PLAUSIBLE <= mean <= PLAUSIBLE * standard:
+        return
+    units = var.attrs.get("units", var.attrs.get("standard_name"))
+    guess = "a geopotential (m2 s-2) labelled m" if mean > standard else "a geopotential height (m) labelled m2 s-2"
+    raise SceneError(
+        f"{where}: {var.name} (units {units!r}) gives heights of {heights.min():.0f} to {heights.max():.0f} m at "
+        f"{level:g} hPa, where the standard atmosphere's is {standard:.0f} m: {guess}? (its units decide)"
+    )
 
 
 def taper(lmax: int, truncation: int, sharp: bool) -> np.ndarray:
@@ -479,15 +527,22 @@ class Reanalysis(Case):
         return self._state.at(lat, lon)["hs"]
 
     def initial(self, lat, lon):
-        return _initial(self._state.at(lat, lon), self.initial_file)
+        return _initial(self._state.at(lat, lon), self.initial_file, self.surface_file)
 
 
-def _initial(fields: dict, where) -> tuple:
-    """(u, v, h) of evaluated ``fields``; ``SceneError`` where h <= 0 (a surface above the level)."""
-    if np.any(fields["h"] <= 0):
+def _initial(fields: dict, where, surface_file=None) -> tuple:
+    """(u, v, h) of evaluated ``fields``; ``SceneError`` where h <= 0: the surface of
+    ``surface_file`` above the level's height, or (none given) the level's height itself."""
+    low = np.count_nonzero(fields["h"] <= 0)
+    if low and surface_file is not None:
         raise SceneError(
-            f"{where}: h = (h + hs) - hs <= 0 at {np.count_nonzero(fields['h'] <= 0)} nodes: the surface "
-            "rises above the level's height there (choose a higher level or no surface_file)"
+            f"{where}: h = (h + hs) - hs <= 0 at {low} nodes: the surface of {surface_file} rises above the "
+            "level's height there (choose a higher level or no surface_file)"
+        )
+    if low:
+        raise SceneError(
+            f"{where}: the level's height is zero or below at {low} nodes (lowest {fields['h'].min():.0f} m; "
+            "a level below the ground there): choose a higher level"
         )
     return fields["u"], fields["v"], fields["h"]
 

@@ -247,7 +247,10 @@ def test_unscored_says_why_the_truth_cannot_score_a_day(tmp_path):
     assert unscored(tc5, 1.0, t213) is None and unscored(tc5, 15.0, t213) is None
     assert unscored(tc5, 4.0, t213) == "tc5_mountain_T213.nc stores days 0, 1, 2, 5, 10, 15, not day 4"
     assert unscored(make_case("tc2_steady"), 4.0, None) is None  # an exact solution scores any day
-    assert unscored(_NoTruth(), 1.0, None) == "_NoTruth has no exact solution and no reference file"
+    assert (
+        unscored(_NoTruth(), 1.0, None)
+        == "the case has no exact solution and no reference file (case.reference names one)"
+    )
     # a chosen file: its own days
     few = tmp_path / "tc5_few_days.nc"
     with xr.open_dataset(t213, decode_times=False) as ds:

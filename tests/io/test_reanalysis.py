@@ -136,6 +136,22 @@ def test_a_surface_file_gives_hs_and_the_depth_over_it(tmp_path):
     assert np.array_equal(got["h"], got["h_surface"] - got["hs"])
 
 
+@pytest.mark.parametrize("lmax", [6, 24, 60])
+def test_a_point_s_value_is_the_same_whatever_other_points_are_asked_for(lmax):
+    """Issue 127, item 4: each rank evaluates the start at its own nodes, and a reanalysis start
+    (T24 at ne4) differed by up to 2.7e-10 m between 1 and 2 ranks: ducc0 chose its NUFFT kernel by
+    the number of points (1.3e-9 m of h + hs at ne4's first half). Every subset's values are the
+    whole set's bits, at low degrees too (where the choice moved)."""
+    state = analyse(_dataset(nlat=2 * lmax + 2, nlon=4 * lmax + 4), truncation=lmax)
+    rng = np.random.default_rng(lmax)
+    lat, lon = np.arcsin(rng.uniform(-1.0, 1.0, 20000)), rng.uniform(0.0, 2 * math.pi, 20000)
+    whole = state.at(lat, lon)
+    for n in (7, 100, 1000, 5000, 19999):
+        part = state.at(lat[:n], lon[:n])
+        for key, values in part.items():
+            assert np.array_equal(values, whole[key][:n]), (key, n, np.max(np.abs(values - whole[key][:n])))
+
+
 def test_the_bundled_ncep_june_state():
     """NCEP/NCAR's June 500 hPa climatology (T42 Gaussian, Z3 in m): read on its Gaussian rings
     (exact to T63), its area-mean height 5681.6 m (l = 0) and jets of 20-40 m s⁻¹, the wind's divergence
@@ -160,7 +176,7 @@ def _bad(tmp_path):
     nan[0, 0, 3, 4] = np.nan
     regional = good.isel(lat=slice(4, 20))
     return {
-        "no_wind.nc": (good.drop_vars(["u", "v"]), "no the eastward wind u"),
+        "no_wind.nc": (good.drop_vars(["u", "v"]), "no eastward wind u"),
         "nan.nc": (good.assign(z=(good.z.dims, nan, good.z.attrs)), "z has 1 missing values"),
         "units.nc": (good.assign(z=good.z.assign_attrs(units="kg")), "neither m"),
         "wind_units.nc": (good.assign(u=good.u.assign_attrs(units="knots")), "the wind must be in m s-1"),
@@ -173,7 +189,7 @@ def _bad(tmp_path):
         ),
         "run_file.nc": (xr.Dataset({"h": (("time", "ncol"), np.ones((1, 5)))}), "a swe_sphere run or restart file"),
         "junk.nc": ("not netCDF at all", "not a readable netCDF file"),
-        "no_height.nc": (good.drop_vars("z"), "no the geopotential (m2 s-2) or geopotential height (m)"),
+        "no_height.nc": (good.drop_vars("z"), "no geopotential (m2 s-2) or geopotential height (m)"),
         "fill.nc": ((good.assign(z=(good.z.dims, nan, good.z.attrs)), {"z": {"_FillValue": -9999.0}}), "missing"),
         "no_units.nc": (good.assign(z=xr.Variable(good.z.dims, good.z.values)), "has no units"),
         "half_wind.nc": (
@@ -225,6 +241,60 @@ def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_pa
         code, _, err = cli_main(capsys, "run", name.strip(), *TINY, "--days", "0.1", *flags)
         one_line(code, err, 2, words)
     assert set(tmp_path.iterdir()) == before
+
+
+def test_a_500_hpa_state_whose_units_say_the_wrong_quantity_is_refused(capsys, tmp_path, monkeypatch):
+    """Issue 127, item 5: a geopotential labelled m ran as 49-58 km "heights", a height labelled
+    m2 s-2 as a 500 m atmosphere; both are refused in one line naming the variable, its units and
+    the range of heights found, against the standard atmosphere's 5574 m at 500 hPa. Right units
+    at 500 hPa, and at 200 hPa (11784 m), run."""
+    from swe_sphere.io.reanalysis import standard_height
+
+    monkeypatch.chdir(tmp_path)
+    assert round(standard_height(500.0)) == 5574 and round(standard_height(200.0)) == 11784
+    good = _dataset()  # z in m2 s-2, 5500 m
+    mean = 5500.0 * EARTH.g / G0
+    as_m = good.assign(z=good.z.assign_attrs(units="m"))
+    heights = good.assign(z=(good.z / EARTH.g).assign_attrs(units="m2 s-2"))
+    for name, data, found in (("as_m.nc", as_m, as_m.z.values), ("heights.nc", heights, heights.z.values / G0)):
+        data.to_netcdf(name)
+        code, _, err = cli_main(capsys, "run", name, *TINY, "--days", "0.1")
+        range_ = f"gives heights of {found.min():.0f} to {found.max():.0f} m at 500 hPa"
+        one_line(
+            code, err, 2, f"{name}: z (units '{data.z.units}') {range_}, where the standard atmosphere's is 5574 m"
+        )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["as_m.nc", "heights.nc"]
+    high = good.assign(z=good.z * standard_height(200.0) / mean).assign_coords(level=[200.0])
+    assert analyse(high, level=200, truncation=L).lmax == L
+
+
+def test_the_reader_s_words(capsys, tmp_path, monkeypatch):
+    """Issue 127, item 8: levels in Pa shown and asked for in hPa ("give a level (hPa; the file has
+    plev 85000, ...)" then "level 50000 hPa is not in the file"); heights at or below zero without a
+    surface file blamed on the level, not on a surface file not given; a Dataset given in Python
+    named as such, not by the temporary file that holds it; no class name for a case without truth."""
+    import swe_sphere
+
+    monkeypatch.chdir(tmp_path)
+    good = _dataset()
+    pa = xr.concat([good, good.assign_coords(level=[850.0])], "level")
+    pa = pa.assign_coords(level=("level", pa.level.values * 100.0, {"units": "Pa"})).rename(level="plev")
+    pa.to_netcdf("pa.nc")
+    code, _, err = cli_main(capsys, "run", "pa.nc", *TINY, "--days", "0.1")
+    one_line(code, err, 2, "z is 3-D: give a level (hPa; the file has plev 500, 850 hPa)")
+    code, _, err = cli_main(capsys, "run", "pa.nc", *TINY, "--days", "0.1", "--level", "50000")
+    one_line(code, err, 2, "level 50000 hPa is not in the file (levels 500, 850 hPa): the level is in hPa, 500 here")
+    low = good.assign(z=good.z - 5500.5 * EARTH.g).assign_coords(level=[950.0])
+    low.to_netcdf("low.nc")
+    code, _, err = cli_main(capsys, "run", "low.nc", *TINY, "--days", "0.1")
+    one_line(code, err, 2, "low.nc: the level's height is zero or below at", "choose a higher level")
+    assert "surface" not in err
+    with pytest.raises(SceneError) as raised:
+        swe_sphere.run(good.assign(z=good.z.assign_attrs(units="m")), ne=2, np=4, days=0.1)
+    assert (
+        str(raised.value).startswith("the Dataset given: z (units 'm') gives heights")
+        and "/" not in str(raised.value).split("gives")[0]
+    )
 
 
 def test_a_run_from_a_file_and_a_scene_from_one(capsys, tmp_path, monkeypatch):

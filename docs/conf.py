@@ -16,7 +16,8 @@ from pathlib import Path
 
 import swe_sphere
 
-# the pages generated from the code when the site is built (_ext/: the scene keys, the steppers)
+# the pages generated from the code when the site is built (_ext/: the scene keys, the steppers,
+# the run file's contents)
 sys.path.insert(0, str(Path(__file__).parent / "_ext"))
 
 project = "swe_sphere"
@@ -34,6 +35,7 @@ extensions = [
     "sphinx_gallery.gen_gallery",
     "scene_keys",
     "steppers_page",
+    "run_file_page",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

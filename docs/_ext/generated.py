@@ -20,6 +20,7 @@ def directive(sections: Callable[[], list[tuple[str, str, str]]], source: str) -
 
     class Sections(SphinxDirective):
         def run(self) -> list[nodes.Node]:
+            _pages(self.env).add(self.env.docname)
             out = []
             for label, title, body in sections():
                 section = nodes.section()
@@ -31,3 +32,24 @@ def directive(sections: Callable[[], list[tuple[str, str, str]]], source: str) -
             return out
 
     return Sections
+
+
+def _pages(env) -> set:
+    """The pages with generated sections (kept in the build environment)."""
+    if not hasattr(env, "swe_generated_pages"):
+        env.swe_generated_pages = set()
+    return env.swe_generated_pages
+
+
+def _outdated(app, env, added, changed, removed) -> list[str]:
+    # their sources (the schema, the registry, the writers) are code, not pages: read them every build
+    return sorted(_pages(env) - set(removed))
+
+
+def add(app, name: str, sections: Callable[[], list[tuple[str, str, str]]], source: str) -> dict:
+    """Register the directive ``name`` of ``sections`` with ``app``; its pages are read again
+    at every build. Returns the extension's metadata."""
+    app.add_directive(name, directive(sections, source))
+    if _outdated not in [listener.handler for listener in app.events.listeners.get("env-get-outdated", [])]:
+        app.connect("env-get-outdated", _outdated)
+    return {"parallel_read_safe": True}

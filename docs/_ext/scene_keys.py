@@ -221,7 +221,6 @@ def sections() -> list[tuple[str, str, str]]:
 
 
 def setup(app):
-    from generated import directive  # Sphinx's: only when the site is built
+    from generated import add  # Sphinx's: only when the site is built
 
-    app.add_directive("scene-keys", directive(sections, "scene_keys.py"))
-    return {"parallel_read_safe": True}
+    return add(app, "scene-keys", sections, "scene_keys.py")

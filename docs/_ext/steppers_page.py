@@ -32,7 +32,6 @@ def sections() -> list[tuple[str, str, str]]:
 
 
 def setup(app):
-    from generated import directive  # Sphinx's: only when the site is built
+    from generated import add  # Sphinx's: only when the site is built
 
-    app.add_directive("steppers", directive(sections, "steppers_page.py"))
-    return {"parallel_read_safe": True}
+    return add(app, "steppers", sections, "steppers_page.py")

@@ -163,7 +163,7 @@ class ShallowWater:
     ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g or the subcycle not
     numbers in range, a ``device`` that is not a name, or a ``device`` other than its
     ``topology``'s (the model's arrays would live where its launches do not: an illegal
-    memory access on CUDA, issue 83).
+    memory access on CUDA).
     """
 
     # what writes the launches of the operators built on this model (the gravity-wave operator,

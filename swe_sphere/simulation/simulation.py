@@ -78,7 +78,7 @@ class Simulation:
     ``add_callback``; ``run`` integrates to the scene's end; ``from_checkpoint``
     continues a restart file instead of starting at t = 0. With ``members`` (or a scene's
     [ensemble]) it steps N members of the scene, member k with the bits of the single run from
-    its initial state (issue 85): in the same launches on N copies of the grid, or each on a
+    its initial state: in the same launches on N copies of the grid, or each on a
     model of its own (``layout``), its diagnostics and run files on (N, n) fields
     (``members.Members``); the same ``run``, ``advance``, ``add_callback``, ``from_checkpoint`` and
     ``write_checkpoint``, and ``states``, ``set_states``, ``invariants``, ``errors`` and

@@ -143,7 +143,7 @@ class Lts(Mri):
     step is about a quarter of RK4's and the ∇⁴, once a step, is applied four times as often.
     Its coupled levels hold less than each element's own limit near the interfaces on a
     paved mesh: ``level_margin`` moves the elements nearest a level's limit finer
-    (the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Local time stepping").
+    (the earlier benchmarks notebook (benchmarks/README.md before the suite), "Local time stepping").
 
     On a mesh (and flow) with one level the step is ``inner``'s global explicit
     Runge–Kutta step, the same bits as that stepper (``describe`` says so). s slow
@@ -155,7 +155,7 @@ class Lts(Mri):
     every rank has an equal share of each. The run file's attributes
     ``lts_*`` give the table, the levels, the elements per level and the saving's bound.
 
-    What it does not reach (measured in the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Local time stepping"): with
+    What it does not reach (measured in the earlier benchmarks notebook (benchmarks/README.md before the suite), "Local time stepping"): with
     MIS tables the coarse step stays near the global one, since the levels' coupling, not
     the fine substeps, sets it (the MIS4a slow table alone holds 0.72x RK4's interval on
     the imaginary axis), and a coarse step evaluates the fine elements s_inner Σ_r ⌈d_r 2^K⌉

@@ -49,7 +49,7 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
 
     Options (scene table ``[semi_implicit]``): ``robert_asselin`` (0.05),
     ``tol`` (the Helmholtz CG's relative residual, 1e-7: where a tighter one no longer
-    changes the sweep's temporal errors; the benchmarks notebook (git show 5fa9286:benchmarks/README.md), "Measurements behind the
+    changes the sweep's temporal errors; the earlier benchmarks notebook (benchmarks/README.md before the suite), "Measurements behind the
     code"), ``maxiter`` (500),
     ``mean_depth`` (H in m; 0 = the initial state's mean depth). The
     Helmholtz solve is ``helmholtz.HelmholtzSolver``'s compiled CG; each solve
@@ -57,7 +57,7 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
     ``guess_history`` (0..32, 8) of them (``helmholtz.GuessHistory``; 0: from the
     last solution). ``precision`` ("double" | "mixed":
     float32 CG passes refined in float64 to the same ``tol``; "double" is the
-    default because the float32 product is no faster on the CPU, the benchmarks notebook (git show 5fa9286:benchmarks/README.md)).
+    default because the float32 product is no faster on the CPU, the earlier benchmarks notebook (benchmarks/README.md before the suite)).
     Reports the Helmholtz iterations per step (under ``Simulation.run`` counted on
     the device and read once a block, the step a graph after the first). Raises
     ValueError without the continuity and pressure-gradient terms.

@@ -16,6 +16,11 @@ the same arithmetic:
   CPU, where a launch is one serial loop: each node's fluxes are formed once
   into local rows and differentiated from there, with FMA contraction on, on
   whole GLL rows (``operators.row_vectors``) so that it runs as packed SIMD.
+
+With ``tracers`` K > 0 (compiled in only then: the key ends ``__q<K>``) the continuity's
+kernels also write rows 3..3+K−1, the flux-form tendency ∂(hq)/∂t = −∇·(hq v) of each passive
+tracer's mass hq, by the continuity's own arithmetic on hq in h's place (HOMME's tracers ride
+the dynamics' mass flux: ``prim_advection_mod``'s euler_step), so that hq = h stays hq = h.
 """
 
 import functools
@@ -131,7 +136,30 @@ def finish(terms: tuple, weighted: bool = False):
 
 
 @functools.cache
-def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64):
+def tracer_finish(weighted: bool):
+    """``finish``'s continuity row for a tracer: tend[row, p] = −div/metdet[p] (times mass[p]
+    if ``weighted``), the bits of dh for the same div. Generic over nodes and rows as ``finish``."""
+    W = bool(weighted)
+
+    def finish_tracer(
+        p: int, row: int, div: Any, metdet: wp.array(dtype=Any), mass: wp.array(dtype=Any), tend: wp.array2d(dtype=Any)
+    ):
+        dq = -over(div, metdet[p])
+        if wp.static(W):
+            dq = times(mass[p], dq)
+        tend[row, p] = dq
+
+    finish_tracer.__qualname__ = finish_tracer.__name__ = "finish_tracer" + ("__mass" if W else "")
+    return wp.func(finish_tracer)
+
+
+def tracer_suffix(tracers: int) -> str:
+    """What a tendency kernel's key adds for ``tracers`` K rows of tracer mass: nothing for 0."""
+    return f"__q{int(tracers)}" if tracers else ""
+
+
+@functools.cache
+def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64, tracers: int = 0):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
@@ -142,11 +170,16 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
     the float type of every array but the state x (float64) and of g (float64, or float32:
     ``ShallowWater``'s precision). Under float32 the Bernoulli function's g h is g (h − h0), h0
     (m) a reference depth subtracted in float64 before the rounding (∇(g h0) = 0: the pressure
-    gradient keeps the digits of h's variation, not of its 10 km); under float64 h0 is unread."""
+    gradient keeps the digits of h's variation, not of its 10 km); under float64 h0 is unread.
+    ``tracers`` K: with the continuity, rows 3..3+K−1 of x and tend are tracer masses hq and
+    their tendencies (the module's note); ValueError for K > 0 without the continuity."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG  # ∇ of the Bernoulli function ½|v|² + g h
     NP = int(np_static)
     SHIFT = dtype is not f64
+    K = int(tracers)
+    if K and not CONT:
+        raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
 
     def kernel(
         x: wp.array2d(dtype=f64),
@@ -200,24 +233,42 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
                 cx += dvv[i, m] * (D[1, q] * uq + D[3, q] * vq)
                 cy += dvv[j, m] * (D[0, r] * ur + D[2, r] * vr)
         wp.static(finish(terms, weighted))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
+        for k in range(wp.static(K)):  # each tracer's mass hq by the continuity's arithmetic on h
+            dq = dtype(0.0)
+            for m in range(n):
+                q = base + j * n + m
+                r = base + m * n + i
+                uq, vq, hq = dtype(x[0, q]), dtype(x[1, q]), dtype(x[3 + k, q])
+                ur, vr, hr = dtype(x[0, r]), dtype(x[1, r]), dtype(x[3 + k, r])
+                dq += dvv[i, m] * metdet[q] * hq * (Dinv[0, q] * uq + Dinv[1, q] * vq)
+                dq += dvv[j, m] * metdet[r] * hr * (Dinv[2, r] * ur + Dinv[3, r] * vr)
+            wp.static(tracer_finish(weighted))(p, 3 + k, dq, metdet, mass, tend)
 
     kernel.__qualname__ = kernel.__name__ = (
-        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + (f"__np{NP}" if NP else "") + suffix(dtype)
+        "tendency__"
+        + "__".join(terms)
+        + ("__mass" if weighted else "")
+        + (f"__np{NP}" if NP else "")
+        + tracer_suffix(K)
+        + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache
-def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64):
+def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, tracers: int = 0):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
     (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
     (``weighted``: as ``tendency``'s), g, h0 (a float64 row of the reference depth),
     dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in elements). Dim nelem.
-    ``dtype`` and h0 as ``tendency``'s."""
+    ``dtype``, h0 and ``tracers`` as ``tendency``'s."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
+    K = int(tracers)
+    if K and not CONT:
+        raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
     vec, mat, along, across = row_derivatives(NP, dtype)
     state = row_type(NP)  # the state's rows, float64
     SHIFT = dtype is not f64
@@ -291,8 +342,24 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64):
                 else:
                     cy = across(v1, j, dvv)
             wp.static(finish(terms, weighted))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
+        for k in range(wp.static(K)):  # each tracer's mass flux, then its divergence, as h's
+            for j in range(NP):
+                q = base + j
+                u = vec(x[0, q])
+                v = vec(x[1, q])
+                Jh = times(metdet[q], vec(x[3 + k, q]))
+                f1[j] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+                f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+            for q in range(base, base + NP):
+                j = q - base
+                div = vec()
+                if wp.static(ROW):
+                    div = along(f1[j], dvvT) + along(dvv[j], f2)
+                else:
+                    div = along(f1[j], dvvT) + across(f2, j, dvv)
+                wp.static(tracer_finish(weighted))(q, 3 + k, div, metdet, mass, tend)
 
     kernel.__qualname__ = kernel.__name__ = (
-        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + suffix(dtype)
+        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + tracer_suffix(K) + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

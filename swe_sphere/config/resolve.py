@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 from ..cases.library import Case, make_case
 from ..cases.reference import cases_of, locate, stored_days
+from ..cases.tracers import TRACER_FIELDS
 from ..core.arguments import got
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
@@ -350,6 +351,43 @@ def refuse_precision(precision: str, stepper: str) -> None:
     why = STEPPERS[stepper].float32_refusal if precision == "float32" else None
     if why is not None:
         raise SceneError(f'numerics.precision = "float32" with stepper {stepper}: {why}; it runs in float64 only')
+
+
+def resolve_tracers(
+    table: dict, case: ResolvedCase, terms: tuple, stepper: str, controlled: bool, precision: str
+) -> tuple:
+    """``Scene.tracers`` of the [tracers] table: ((name, initial), ...), ``names`` the tracers'
+    run-file names and ``initial`` their bundled fields (``cases.tracers.TRACER_FIELDS``), one
+    each; () without the table. Raises ``SceneError`` (one line naming the key): names that are
+    not distinct identifiers or that are a run file's own field or coordinate, an unknown
+    field, lists of other lengths, a case whose h is not a depth (TC1's is itself a tracer, zero
+    off its bell: q = hq / h has no value there), a scene without the continuity term (the tracers ride it),
+    or a stepper, step control or precision that does not carry them (``Stepper.tracers_refusal``)."""
+    if not table:
+        return ()
+    names, initial = table.get("names"), table.get("initial")
+    if not names or not all(isinstance(n, str) and n.isidentifier() for n in names):
+        raise SceneError(f"tracers.names must be a non-empty list of identifiers (got {names!r})")
+    taken = set(OUTPUT_FIELDS) | {"hs", "lat", "lon", "area", "time"}
+    if len(set(names)) != len(names) or set(names) & taken:
+        raise SceneError(f"tracers.names must be distinct and none of {', '.join(sorted(taken))} (got {names!r})")
+    if not isinstance(initial, list) or len(initial) != len(names):
+        raise SceneError(f"tracers.initial must list a field for each of the {len(names)} names (got {initial!r})")
+    for f in initial:
+        if f not in TRACER_FIELDS:
+            raise SceneError(f"tracers.initial: unknown field {f!r} (known: {', '.join(TRACER_FIELDS)})")
+    if not case.case.h_is_depth:
+        raise SceneError(f"[tracers] needs a fluid depth: case {case.name}'s h is itself a tracer (q = hq / h)")
+    if "continuity" not in terms:
+        raise SceneError("[tracers] needs the continuity term: the tracers ride the depth's mass flux")
+    why = STEPPERS[stepper].tracers_refusal
+    if why is None and controlled:
+        why = "its step control weighs u, v and h alone"
+    if why is None and precision != "float64":
+        why = "its float32 tendency is not written for them"
+    if why is not None:
+        raise SceneError(f"[tracers] with stepper {stepper}: {why}; tracers run with the explicit Runge-Kutta steppers")
+    return tuple(zip(names, initial, strict=True))
 
 
 # the keywords of ``load_scene`` (``--ne``, ``--days``, ...) and the values they replace

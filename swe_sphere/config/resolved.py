@@ -97,6 +97,9 @@ class Scene:
     precision : str
         [numerics] precision: "float64" (the default) or "float32", the RHS tendency's type
         (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64.
+    tracers : tuple of (str, str)
+        [tracers]: each passive tracer's name and its bundled initial field
+        (``cases.tracers.TRACER_FIELDS``), carried as hq in the state's rows 3..; (): none.
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -150,6 +153,7 @@ class Scene:
     own_planet: dict | None = field(default=None, compare=False)
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
+    tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -274,6 +278,8 @@ class Scene:
             del d["hypervis_every"]
         if d["precision"] == "float64":  # the default, likewise
             del d["precision"]
+        if not d["tracers"]:  # none: a scene's dict as before the key
+            del d["tracers"]
         return d
 
 
@@ -304,6 +310,7 @@ def scene_from_dict(d: dict) -> Scene:
             "output_streams": streams,
             "control": None if d.get("control") is None else SceneControl(**d["control"]),
             "element_filter": None if d.get("element_filter") is None else tuple(d["element_filter"]),
+            "tracers": tuple(tuple(t) for t in d.get("tracers", ())),
             "mesh": from_json(d["ne"], d.get("mesh")),
         }
     )

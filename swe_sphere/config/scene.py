@@ -61,6 +61,9 @@ the run length, the output interval and the hyperviscosity. Layout::
                       at the grid scale). A run on another planet than
                       Williamson's Earth is not scored against the bundled
                       spectral references (the Earth's).
+    [tracers]         names = ["dye"], initial = ["cosine_bells"]: passive tracers q carried as hq
+                      by the depth's continuity (``cases.tracers.TRACER_FIELDS``: their
+                      initial fields; explicit Runge-Kutta steppers at a fixed dt)
     [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
                       float32, the state and its accumulation float64; ``Scene.precision``):
                       refused with a stepper that differences the RHS
@@ -108,6 +111,7 @@ from .resolve import (
     resolve_stepper_days,
     resolve_stepper_options,
     resolve_terms,
+    resolve_tracers,
     scene_title,
 )
 from .resolved import Scene, scene_from_dict, with_days
@@ -294,6 +298,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         own_dt=own_dt,
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
+        tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
     )
 
 

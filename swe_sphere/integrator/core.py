@@ -52,8 +52,10 @@ class Unit:
 
     @classmethod
     def of(cls, model: ShallowWater, stepper, starts: np.ndarray, backend, graphs: str) -> Unit:
-        """The unit of ``model`` and ``stepper`` from ``starts`` (members, 3, n), prepared."""
-        x = model.new_state(*np.concatenate(list(starts), axis=1))
+        """The unit of ``model`` and ``stepper`` from ``starts`` (members, rows, n: u, v, h and
+        the tracers' masses), prepared."""
+        joined = np.concatenate(list(starts), axis=1)
+        x = model.new_state(*joined[:3], masses=joined[3:] if model.tracers else None)
         stepper.prepare(x)
         return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 

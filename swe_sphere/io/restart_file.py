@@ -44,6 +44,14 @@ from .run_file import AREA_ATTRS, FIELD_ATTRS, FIELDS, NODE_COORDINATES, WRITING
 
 FORMAT = 3  # bump when the layout changes (2: checksums and content hash; 3: the state as named fields)
 STATE = ("u", "v", "h")  # the rows of x, each a variable with output.FIELDS' attributes
+
+
+def mass_names(scene: dict) -> list[str]:
+    """The variables of the tracers' masses hq, x's rows after ``STATE``: ``<name>_mass`` for each
+    of the stored scene's (``Scene.as_dict``) [tracers], in order."""
+    return [f"{name}_mass" for name, _ in scene.get("tracers", ())]
+
+
 MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
 
 
@@ -103,8 +111,8 @@ def write(
 ) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
-    ``scene``: the run's ``config.Scene``; ``x``: (3, N) element-local state (u, v
-    in m s⁻¹, h in m) at ``step`` (model time step·dt); ``stepper_state``:
+    ``scene``: the run's ``config.Scene``; ``x``: (3 + K, N) element-local state (u, v
+    in m s⁻¹, h in m, the K tracers' masses hq in m as ``<name>_mass``) at ``step`` (model time step·dt); ``stepper_state``:
     ``Stepper.state()`` (arrays (3, N), scalars); ``counters``: {"rhs_evals",
     "wall_time" (s), "iterations": {solver: n}}; ``initial``: the diagnostics at
     t = 0; ``grid``: the run's grid, whose element-local ``lat``/``lon`` (degrees) and
@@ -158,6 +166,10 @@ def write(
                         "long_name": f"{FIELDS[name]['long_name']} at each element's GLL nodes",
                     }
                 )
+                var[:] = row
+            for name, row in zip(mass_names(scene.as_dict()), x[3:], strict=True):
+                var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
+                var.setncatts(dict(units="m", long_name=f"{name[:-5]} tracer's mass hq at each element's GLL nodes"))
                 var[:] = row
             for key, value in stepper_state.items():
                 if isinstance(value, np.ndarray):
@@ -230,9 +242,10 @@ def read(path) -> dict:
                     if k.startswith("stepper_")
                 }
             )
-            x = np.stack([arrays[name] for name in STATE])
+            scene = json.loads(attrs["scene"])
+            x = np.stack([arrays[name] for name in (*STATE, *mass_names(scene))])
             stored = dict(
-                scene=json.loads(attrs["scene"]),
+                scene=scene,
                 step=int(attrs["step"]),
                 x=x,
                 stepper_state=state,

@@ -88,6 +88,24 @@ TIME_ATTRS = dict(
 )
 COURANT_DT = "dt: the scene's; under step control the controller's at that time (the step it goes on with)"
 
+
+def tracer_attrs(name: str) -> dict:
+    """The CF attributes of passive tracer ``name``'s node field: its mixing ratio q = hq / h."""
+    return dict(units="1", long_name=f"mixing ratio of passive tracer {name} (its mass per unit depth, hq / h)")
+
+
+def series_attrs(name: str) -> dict:
+    """The attributes of time series ``name``: ``SERIES_ATTRS``' own, or a tracer's mass
+    ``<tracer>_mass`` and its relative change ``<tracer>_mass_change``. KeyError for another."""
+    if name in SERIES_ATTRS:
+        return SERIES_ATTRS[name]
+    if name.endswith("_mass_change"):
+        return dict(units="1", long_name=f"relative change of tracer {name[:-12]}'s mass since t = 0")
+    if name.endswith("_mass"):
+        return dict(units="m3", long_name=f"mass of tracer {name[:-5]} (area integral of h q)")
+    raise KeyError(name)
+
+
 SERIES_ATTRS = {
     "mass": dict(units="m3", long_name="mass (area integral of h)"),
     "total_energy": dict(units="m5 s-2", long_name="total energy"),
@@ -264,8 +282,10 @@ class RunWriter:
         cells: bool = True,
         members: int | None = None,
         member_series=(),
+        tracers=(),
     ):
         self.path, self.fields, self.cells = Path(path), tuple(fields), cells
+        self.tracers = tuple(tracers)
         self.members, self.member_series = members, tuple(member_series)
         self.cells_seconds = None  # CPU seconds spent building the cells, where they were not in the cache
         self.cells_failure = None  # why the cells' fit failed, where it did (the file is written without them)
@@ -343,23 +363,28 @@ class RunWriter:
                 long_name = f"{what} {FIELDS[name]['long_name']}"
                 var.setncatts({**FIELDS[name], **FIELD_ATTRS, **located, "long_name": long_name})
                 var.cell_methods = f"realization: {method}"
+        for name in self.tracers:  # q, each tracer's mixing ratio
+            var = ds.createVariable(name, dtype, (*lead, "ncol"), zlib=compress)
+            var.setncatts({**tracer_attrs(name), **FIELD_ATTRS, **located})
         for name in (*series, *(("h_spread_rms",) if self.members is not None and "h" in self.fields else ())):
-            ds.createVariable(name, "f8", ("time",)).setncatts(SERIES_ATTRS[name])
+            ds.createVariable(name, "f8", ("time",)).setncatts(series_attrs(name))
         for name in self.member_series:
             ds.createVariable(name, "f8", ("time", "member")).setncatts(SERIES_ATTRS[name])
         self.n = 0
 
-    def append(self, day: float, u, v, h, series: dict, vorticity=None, divergence=None) -> None:
+    def append(self, day: float, u, v, h, series: dict, vorticity=None, divergence=None, masses=None) -> None:
         """Add one output time (model days since the start); fields element-local (N,), an
         ensemble's (members, N) with ``series`` holding its ``member_series`` as (members,)
         arrays; ``vorticity`` and ``divergence`` (s⁻¹, DSS'd, element-local) are optional (NaN
-        in the file without them)."""
+        in the file without them); ``masses`` (K, N) the tracers' hq (m), written as q = hq / h."""
         with WRITING:
-            self._append(day, u, v, h, series, vorticity, divergence)
+            self._append(day, u, v, h, series, vorticity, divergence, masses)
 
-    def _append(self, day, u, v, h, series, vorticity, divergence) -> None:
+    def _append(self, day, u, v, h, series, vorticity, divergence, masses) -> None:
         ds, n, g = self.ds, self.n, self.grid
         ds["time"][n] = day
+        for name, hq in zip(self.tracers, () if masses is None else masses, strict=True):
+            ds[name][n, :] = g.to_unique(hq / h)
         for name, f in (("u", u), ("v", v), ("h", h), ("vorticity", vorticity), ("divergence", divergence)):
             if f is None or name not in self.fields:
                 continue

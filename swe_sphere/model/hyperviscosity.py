@@ -18,7 +18,7 @@ import warp as wp
 
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
-from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators
+from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators, tracers
 from .precision import rounded
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
@@ -100,7 +100,8 @@ class Hyperviscosity:
         self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
-        self._rkl_buffer = None  # RKL1's Y_{j−1} or Y_{j−2} beside x (``rkl1``)
+        self._rkl_buffers: dict = {}  # RKL1's Y_{j−1} or Y_{j−2} beside x, by x's shape (``rkl1``)
+        self._tracer_work = None  # (W (3, N), q·hs (N,)): a tracer's ∇⁴ state (``apply_tracers``)
 
     def build(
         self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0), depth=None
@@ -436,7 +437,33 @@ class Hyperviscosity:
             self._plan = (dt, evaluations(self.nu_max * dt * self.biharmonic_radius(), self.model.hypervis_subcycle))
         return self._plan[1]
 
-    def apply(self, x: wp.array2d, dt: float) -> None:
+    def apply_tracers(self, x: wp.array2d, dt: float) -> None:
+        """The tracers' ∇⁴ over dt (s) in place on their masses hq (rows 3.. of x, the model's
+        ``tracers``), each by ``apply`` with ν = ν_div = 0 on a state W whose row 2 is hq and
+        whose surface height is q·hs (``kernels.tracers``: ν_s ∇⁴ of q(h + hs), conserving ∫hq,
+        h's own steps to the bit where hq = h); the same plan of substeps or RKL1 stages as the
+        dynamics' (ν_max's). Call it before ``apply`` (q is read from x's h). Nothing with ν_s = 0
+        or without tracers. W's wind rows stay zero (ν = 0 leaves them so)."""
+        m = self.model
+        if not m.tracers or m.nu_s == 0.0 or self.nu_max == 0.0:
+            return
+        if self._tracer_work is None:
+            self._tracer_work = (
+                wp.zeros((3, m.N), dtype=f64, device=m.device),
+                wp.zeros(m.N, dtype=f64, device=m.device),
+            )
+        W, hs_q = self._tracer_work
+        for k in range(3, m.rows):
+            surface = [x, k, m.operators.hs, W, hs_q]
+            m.launches.replay(
+                ("hv_tracer", x.ptr, k), (x,), lambda: [m.launches.pointwise(tracers.tracer_surface, None, surface)]
+            )
+            with m.operators.hs_as(hs_q):  # the launches of W's ∇⁴ are recorded with q·hs as hs
+                self.apply(W, dt, (0.0, 0.0, m.nu_s))
+            back = x[k : k + 1]
+            m.launches.replay(("hv_tracer_back", x.ptr, k), (x,), lambda: [m.lincomb(back, ((1.0, W[2:3]),))])
+
+    def apply(self, x: wp.array2d, dt: float, nus=None) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
         (B: ``operator``, ν ∇⁴ with ν, ν_div, ν_s)
@@ -452,19 +479,20 @@ class Hyperviscosity:
         exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
         up on day 4, as with forward Euler it does not. RKL1's P_s damps the
         interior of its interval to ≲ 0.3; the split is first order anyway.
-        Does nothing (launches nothing) with ν = ν_div = ν_s = 0."""
+        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. ``nus``: (ν, ν_div, ν_s) in
+        place of the model's (None), the plan still the model's (``apply_tracers``')."""
         m = self.model
         if self.nu_max == 0.0:
             return
         n, rkl = self.plan(dt)
         if rkl:
-            self.rkl1(x, dt, n)
+            self.rkl1(x, dt, n, nus)
             return
         coef = -dt / n
         for _ in range(n):
-            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0]), (coef,))
+            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0], nus=nus), (coef,))
 
-    def rkl1(self, x: wp.array2d, dt: float, s: int) -> None:
+    def rkl1(self, x: wp.array2d, dt: float, s: int, nus=None) -> None:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
         dx/dt = M(x) = −B x over dt (s), in place on the state x (3, N): Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
@@ -472,18 +500,18 @@ class Hyperviscosity:
         ν dt λ ≤ s² + s. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
         convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
         (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
-        or x at the last stage (each read at its own node only)."""
+        or x at the last stage (each read at its own node only). ``nus`` as ``apply``'s."""
         m = self.model
-        if self._rkl_buffer is None:
-            self._rkl_buffer = wp.zeros_like(x)
+        if x.shape not in self._rkl_buffers:
+            self._rkl_buffers[x.shape] = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
         def stage(src, out, prev, mode, mu=1.0, nu=0.0):
             key = ("hv", mode, src.ptr, out.ptr, prev.ptr)
-            build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
+            build = lambda c: self.build(src, c[0], out, nus=nus, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
             m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
 
-        prev, cur = x, self._rkl_buffer
+        prev, cur = x, self._rkl_buffers[x.shape]
         stage(x, cur, x, "euler")  # Y_1
         for j in range(2, s + 1):
             out = x if j == s else prev  # Y_{j−2} is not needed after this stage

@@ -49,7 +49,7 @@ class TendencyArrays(NamedTuple):
     ``dtype``: the metric terms ``D``, ``Dinv`` (4, N), ``metdet``, ``fcor``, the element mass
     ``mass`` (spheremp, N) and the topographic forcing −g∇hs ``forcing`` (2, N; None without
     topography), the derivative matrix ``dvv`` (np, np) and ``dvv_rows`` (the per-element
-    kernels'), the element-local tendency ``tend`` (3, N) they write, and ``depth`` H₀ (m) the
+    kernels'), the element-local tendency ``tend`` (rows, N: 3 and the tracers') they write, and ``depth`` H₀ (m) the
     reference depth the pressure gradient's g h is taken from (``kernels.tendencies.tendency``:
     ∇(g(h − H₀)) with h − H₀ formed in float64, so that float32 carries h's variation, not its
     mean: SpeedyWeather's scaling of its variables). Under float64 these are the model's own
@@ -69,11 +69,11 @@ class TendencyArrays(NamedTuple):
     depth: float
 
     @classmethod
-    def of(cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, depth: float) -> TendencyArrays:
+    def of(cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, depth: float, rows: int = 3) -> TendencyArrays:
         """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass`` and ``forcing``
-        (float64) as the tendency reads them in ``dtype``, a new ``tend``, and the reference
-        ``depth`` (m)."""
-        tend = wp.zeros((3, ops.N), dtype=dtype, device=ops.D.device)
+        (float64) as the tendency reads them in ``dtype``, a new ``tend`` of the state's ``rows``
+        (3 and a row for each tracer), and the reference ``depth`` (m)."""
+        tend = wp.zeros((rows, ops.N), dtype=dtype, device=ops.D.device)
         if dtype is wp.float64:
             return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
         dvv = np.asarray(ops.grid.rule.dvv)

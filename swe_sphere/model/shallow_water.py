@@ -52,7 +52,7 @@ class ElementPart(NamedTuple):
     element ranges its kernels run over (its elements, and any others between them that a
     launch less is worth computing), ``nelem`` its elements, ``nodes`` (int32 device array)
     the element-local nodes whose unique node one of them touches (every copy), ``copies``
-    the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (3, N) the
+    the DSS's table of its own copies alone (``Topology.part_copies``), ``tend`` (rows, N) the
     element-local tendency its kernels write (in the model's precision), ``exact`` the ranges of
     its elements alone (a gradient's transposes run over these: a gap's elements are computed,
     not assembled)."""
@@ -82,7 +82,7 @@ class ElementPart(NamedTuple):
         if isinstance(gap, bool) or int(gap) != gap or gap < 0:
             raise ValueError(f"gap must be an integer >= 0 (got {gap})")
         nodes, copies = topology.part_copies(e, whole)
-        tend = wp.zeros((3, topology.N), dtype=model.tendency_arrays.dtype, device=topology.device)
+        tend = wp.zeros((model.rows, topology.N), dtype=model.tendency_arrays.dtype, device=topology.device)
         return cls(element_runs(e, gap), int(e.size), nodes, copies, tend, element_runs(e, 0))
 
 
@@ -153,15 +153,21 @@ class ShallowWater:
         computed in (``model.precision``: the state, its updates and every sum stay float64).
     depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
         (no shift); ``from_case`` gives the midpoint of its initial depth's extremes.
+    tracers : K ≥ 0 passive tracers (``from_scene``: the scene's [tracers]), carried as their
+        masses hq (m) in rows 3..3+K−1 of the state, in flux form by the continuity's own
+        arithmetic (``kernels.tendencies``: ∂(hq)/∂t = −∇·(hq v)), so that q = 1 stays 1 and
+        each tracer's mass ∫hq is conserved as h's; 0: the tendency kernels hold no tracer code.
+        With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``).
 
-    The state is a ``wp.array2d`` (3, N) of rows u, v (m s⁻¹, east/north) and h
-    (fluid depth, m), element-local and continuous (equal on all copies).
+    The state is a ``wp.array2d`` (3 + K, N) of rows u, v (m s⁻¹, east/north), h
+    (fluid depth, m) and the K tracer masses hq (m), element-local and continuous (equal on all
+    copies); ``rows`` = 3 + K.
 
     Raises ``ValueError`` for an unknown term, a negative ν, or the forcing
     term without a forcing or without any tendency term to add to; ``ArgumentError`` (a
     ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
-    ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g or the subcycle not
-    numbers in range, a ``device`` that is not a name, or a ``device`` other than its
+    ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle or
+    ``tracers`` not numbers in range, tracers without the continuity term, a ``device`` that is not a name, or a ``device`` other than its
     ``topology``'s (the model's arrays would live where its launches do not: an illegal
     memory access on CUDA).
     """
@@ -193,6 +199,7 @@ class ShallowWater:
         forcing=None,
         precision="float64",
         depth=None,
+        tracers=0,
     ):
         if not isinstance(grid, CubedSphere):
             raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
@@ -217,6 +224,10 @@ class ShallowWater:
                 f"device {device!r} is not its topology's ({topology.backend.device!r}): give the topology's device"
             )
         terms = _checked_terms(terms, forcing)
+        integer_argument("tracers", tracers, low=0)
+        if tracers and "continuity" not in terms:
+            raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
+        self.tracers, self.rows = int(tracers), 3 + int(tracers)
         dtype = precision_dtype(precision)
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
@@ -243,18 +254,20 @@ class ShallowWater:
         self.precision = precision
         # what the tendency kernels read and write, in the precision's float type
         depth = 0.0 if depth is None else number_argument("depth", depth, "m")
-        self.tendency_arrays = TendencyArrays.of(dtype, self.operators, self.spheremp[:N], self.topo_forcing, depth)
+        self.tendency_arrays = TendencyArrays.of(
+            dtype, self.operators, self.spheremp[:N], self.topo_forcing, depth, self.rows
+        )
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
 
     @functools.cached_property
     def tend(self) -> wp.array2d:
-        """(3, N) float64 element-local work array of the operators built on the model (the
+        """(rows, N) float64 element-local work array of the operators built on the model (the
         gravity-wave operator's): the tendency's own under float64; under float32 an array of
         its own, made on first use (a float32 run of an explicit stepper never holds it)."""
         t = self.tendency_arrays
-        return t.tend if t.dtype is f64 else wp.zeros((3, self.N), dtype=f64, device=self.device)
+        return t.tend if t.dtype is f64 else wp.zeros((self.rows, self.N), dtype=f64, device=self.device)
 
     def _topography_forcing(self, hs) -> wp.array2d:
         """(2, N) −g ∇hs (m s⁻², east/north) at the element-local nodes: the "topography" term's
@@ -300,6 +313,7 @@ class ShallowWater:
             "element_filter": scene.element_filter,
         }
         options.setdefault("precision", scene.precision)
+        options.setdefault("tracers", len(scene.tracers))
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
@@ -325,17 +339,18 @@ class ShallowWater:
         tend, runs = (t.tend, [None]) if part is None else (part.tend, part.runs)
         launches, ops = [], self.operators
         forced = self.forcing is not None and "forcing" in named
+        K = self.tracers if "continuity" in terms else 0  # the tracers ride the continuity
         if terms:
             forcing = t.forcing if t.forcing is not None else t.D[0:2]  # read only with topography
             args = [x, t.D, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
             for run in runs:
                 if ops.per_element:
-                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype)
+                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype, K)
                     h0 = operators.row_type(self.grid.np)(t.depth)
                     inputs = [*map(ops.as_rows, args), self.g, h0, t.dvv_rows, ops.as_rows(tend)]
                     launches.append(self.launches.elements(kernel, inputs, run))
                 else:
-                    kernel = tendencies.tendency(terms, ops.static_np, not forced, t.dtype)
+                    kernel = tendencies.tendency(terms, ops.static_np, not forced, t.dtype, K)
                     inputs = [*args, t.dvv, self.grid.np, self.g, t.depth, tend]
                     launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         if forced:
@@ -347,13 +362,13 @@ class ShallowWater:
                 self._forcing_launches.append(launch)
                 launches.append(launch)
         lo = 0 if forced or set(terms) - {"continuity"} else 2
-        hi = 3 if "continuity" in terms or forced else 2
+        hi = 3 + K if "continuity" in terms else 3 if forced else 2
         return launches, lo, hi, not forced
 
     def _build_rhs(self, x, out, named, part=None):
         launches, lo, hi, weighted = self._build_tendency(x, named, part)
         tend = self.tendency_arrays.tend if part is None else part.tend
-        rows = (lambda a: a) if (lo, hi) == (0, 3) else (lambda a: a[lo:hi])
+        rows = (lambda a: a) if (lo, hi) == (0, self.rows) else (lambda a: a[lo:hi])
         if part is None:
             launches.extend(self.topology.dss(rows(tend), not weighted, rows(out)))
         else:
@@ -367,7 +382,7 @@ class ShallowWater:
         for out, terms, rows in updates:
             if rows is None:
                 arrays = tuple((a, src) for a, src in terms if src is not None)
-                for r0, r1 in ((0, lo), (hi, 3)):
+                for r0, r1 in ((0, lo), (hi, self.rows)):
                     if r0 < r1:
                         if not arrays:
                             raise ValueError(
@@ -468,8 +483,10 @@ class ShallowWater:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics
         (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
         ``advance_hypervis``), then the element filter once (``filter.apply``, a scene's
-        [filter]; HOMME ``filter_P``); nothing without the term and the filter."""
+        [filter]; HOMME ``filter_P``); nothing without the term and the filter. The tracers'
+        masses first (``hv.apply_tracers``: ν_s ∇⁴ of q(h + hs), q read before h's ∇⁴)."""
         if self.hv is not None:
+            self.hv.apply_tracers(x, dt)
             self.hv.apply(x, dt)
         if self.filter is not None:
             self.filter.apply(x)
@@ -490,10 +507,13 @@ class ShallowWater:
         its solves start from the last (or the projection on past) solutions."""
         return HelmholtzSolver(self.implicit_terms(options.mean_depth) if linear is None else linear, options, warm)
 
-    def new_state(self, u=None, v=None, h=None) -> wp.array2d:
-        """A (3, N) device state from element-local numpy rows (zeros where None)."""
-        a = np.zeros((3, self.N))
+    def new_state(self, u=None, v=None, h=None, masses=None) -> wp.array2d:
+        """A (rows, N) device state from element-local numpy rows (zeros where None); ``masses``
+        the tracers' masses hq (K, N) (m; None: zeros)."""
+        a = np.zeros((self.rows, self.N))
         for r, f in enumerate((u, v, h)):
             if f is not None:
                 a[r] = f
+        if masses is not None:
+            a[3:] = masses
         return wp.array(a, dtype=f64, device=self.device)

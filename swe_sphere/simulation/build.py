@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..cases.scoring import Scorer
+from ..cases.tracers import with_tracers
 from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
 from ..core.backend import Backend
@@ -54,8 +55,8 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
     of the grid (``topology``), ``root`` (the rank that diagnoses, writes files and shows
     progress), ``progress``, the whole grid on rank 0 (``grid``; None elsewhere), the model, the
     case's fcor and hs gathered (rank 0), the scorer, ``dfi`` (the digital filter's result where
-    it ran, else None), the stepper and the start state ``start`` (3, N) on this rank's nodes
-    (u, v in m s⁻¹, h in m; the integrator's ``Unit.of`` makes it the device state and prepares
+    it ran, else None), the stepper and the start state ``start`` (3 + K, N) on this rank's nodes
+    (u, v in m s⁻¹, h in m, the K tracers' masses hq in m: the scene's [tracers]; the integrator's ``Unit.of`` makes it the device state and prepares
     the stepper on it)."""
     check_memory(scene, comm, backend)
     case = scene.make_case()
@@ -80,8 +81,9 @@ def build(scene: Scene, backend: Backend, progress: bool, comm, start, initial) 
                 scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo
             )
             start = dfi.x
+        start = with_tracers(start, scene.tracers, local.lat, local.lon)
     else:
-        start = topo.distribute(None if start is ON_ROOT else start, 3, "start state")
+        start = topo.distribute(None if start is ON_ROOT else start, model.rows, "start state")
     if not root:  # a fallback's warning once, from rank 0
         model.launches.guard.warn = lambda line: None
     return case, topo, root, progress and root, grid, model, whole_fcor, whole_hs, scorer, dfi, stepper, start

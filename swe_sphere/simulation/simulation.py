@@ -225,6 +225,8 @@ class Simulation:
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
         many = self._of_members or members is not None or scene.ensemble is not None
+        if many and scene.tracers:
+            raise SceneError("[tracers] in a run of members: the members' states carry u, v and h alone")
         if many and (callable(initial) or start is not None):
             raise SceneError(
                 "initial: an [ensemble]'s members start from its perturbation, or an array, a Perturbation, a "
@@ -235,7 +237,8 @@ class Simulation:
                 f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"
             )
         if start is not None and start is not ON_ROOT:
-            start = array_argument("start", start, (3, None), "m s⁻¹ and m")  # the grid's columns: ``distribute``
+            # the grid's columns: ``distribute``; a row for each tracer's mass after u, v, h
+            start = array_argument("start", start, (3 + len(scene.tracers), None), "m s⁻¹ and m")
         if initial_diagnostics is not None:
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
@@ -671,7 +674,7 @@ class Simulation:
         single run's; ``CheckpointError`` for a state of another grid)."""
         try:
             # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            x = self.topology.distribute(ck.x, 3, "checkpoint state")
+            x = self.topology.distribute(ck.x, self.model.rows, "checkpoint state")
         except ValueError as err:
             raise CheckpointError(str(err)) from None
         self.x.assign(x)

@@ -20,7 +20,8 @@ from .writers import scene_attrs
 class WholeFields:
     """One state's fields gathered on rank 0 (``StateDiagnostics.gather_fields``): u, v
     (m s⁻¹), h (m), vorticity and, when asked for, divergence (s⁻¹, DSS'd), (nnodes,)
-    each on rank 0 and None on the other ranks (divergence None when not asked for).
+    each on rank 0 and None on the other ranks (divergence None when not asked for), and the
+    tracers' masses hq (m; (K, nnodes), the scene's [tracers]; None without).
     Every rank holds one: whether a rank gathers is decided by whether it was
     given one, never by its contents, so all ranks take the same collectives."""
 
@@ -29,6 +30,7 @@ class WholeFields:
     h: np.ndarray | None
     vorticity: np.ndarray | None
     divergence: np.ndarray | None = None
+    masses: np.ndarray | None = None
 
 
 class StateDiagnostics:
@@ -108,11 +110,16 @@ class StateDiagnostics:
         """u, v, h, the vorticity and (``divergence``) the divergence of state x
         (default the current one), in one gather on rank 0 (call on every rank)."""
         x = self.run.x if x is None else x
-        rows = [x.numpy(), self.model.operators.vorticity(x)[None]]
+        state = x.numpy()
+        rows = [state[:3], self.model.operators.vorticity(x)[None]]
         if divergence:
             rows.append(self.model.operators.wind_divergence(x)[None])
-        a = self.topology.gather(np.concatenate(rows))  # rows u, v, h, vorticity (, divergence)
-        return WholeFields(*([None] * 4 if a is None else a))
+        rows.append(state[3:])  # the tracers' masses
+        a = self.topology.gather(np.concatenate(rows))  # rows u, v, h, vorticity (, divergence), masses
+        if a is None:
+            return WholeFields(*([None] * 4))
+        n = 5 if divergence else 4
+        return WholeFields(*a[:n], **({"masses": a[n:]} if self.model.tracers else {}))
 
     def diagnose(self, t: float, x=None, whole: WholeFields | None = None) -> dict:
         """Invariants (and their relative change), errors against the truth
@@ -129,6 +136,8 @@ class StateDiagnostics:
         d = invariants(self.grid, whole.u, whole.v, whole.h, self.hs, whole.vorticity, self.fcor, self.model.g)
         if not self.case.h_is_depth:  # h is a tracer (TC1): only its mass is an invariant
             d = {"mass": d["mass"]}
+        for (name, _), hq in zip(self.run.scene.tracers, () if whole.masses is None else whole.masses, strict=True):
+            d[f"{name}_mass"] = float(self.grid.integrate(hq))  # ∫hq dA (m³), conserved as h's
         start = self.run.initial or d  # diagnosing the initial state itself
         d |= {f"{k}_change": (d[k] - start[k]) / abs(start[k]) for k in d}
         d.update(errors, **self._courant_numbers(whole.u, whole.v, whole.h))

@@ -86,6 +86,7 @@ class RunFiles:
         try:
             for i, (path, fields, _) in enumerate(self.streams):
                 kw = {"overwrite": overwrite, "compress": compress, "fields": fields, "cells": self.scene.output_cells}
+                kw["tracers"] = tuple(name for name, _ in self.scene.tracers)
                 self.writers.append(RunWriter(path, self.grid, self.hs, attrs, self.series, **kw, **members))
                 for line in self.writers[i].cells_notes(self.scene.grid_text) if notify is not None and i == 0 else ():
                     notify(line)
@@ -128,7 +129,14 @@ class RunFiles:
                 self.last[i] = step
                 if self.writers:  # rank 0's
                     self.writers[i].append(
-                        day, whole.u, whole.v, whole.h, series, vorticity=whole.vorticity, divergence=whole.divergence
+                        day,
+                        whole.u,
+                        whole.v,
+                        whole.h,
+                        series,
+                        vorticity=whole.vorticity,
+                        divergence=whole.divergence,
+                        masses=whole.masses,
                     )
 
     def __call__(self, owner) -> None:

@@ -198,8 +198,9 @@ class Stepper(Described):
 
 # -- what a stepper's implementation builds on: its work arrays, its history's entries --------------
 def work_array(stepper: Stepper) -> wp.array:
-    """A (3, N) float64 array of zeros on ``stepper``'s device: a stage's, or a history's."""
-    return wp.zeros((3, stepper.N), dtype=f64, device=stepper.model.topology.device)
+    """A (rows, N) float64 array of zeros on ``stepper``'s device, a row for each of the model's
+    state's (3 and its tracers'): a stage's, or a history's."""
+    return wp.zeros((stepper.model.rows, stepper.N), dtype=f64, device=stepper.model.topology.device)
 
 
 def device_counts(stepper: Stepper) -> dict:

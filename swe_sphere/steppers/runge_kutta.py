@@ -76,6 +76,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     """
 
     explicit = capturable = variable_dt = differentiable = True
+    tracers_refusal = None  # its stages combine whole states: the tracers' rows ride them
 
     def table(self) -> Table:
         """The checked table this stepper steps: a built-in's, its ``name``'s (``explicit_steppers``)."""

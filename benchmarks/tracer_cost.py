@@ -1,0 +1,71 @@
+"""A passive tracer's cost beside a dynamics step's (issue 125: one tracer ≤ 0.3× a step).
+
+TC5 at ne NE np 4 on one CPU thread, the scene's stepper (rk4) and ∇⁴ (every k steps, and every
+step: ``--every 1``): the CPU seconds (``time.process_time``, one thread: the clock this shared
+machine can still compare) of a step with K tracers and without, interleaved in rounds, the
+median of each taken. Prints the ratio (step with K − step without) / (K · step without).
+
+    SWE_SPHERE_THREADS=1 python benchmarks/tracer_cost.py --ne 16 --tracers 1 --rounds 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from swe_sphere.config.scene import load_scene
+from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.steppers import make_stepper
+
+
+def stepping(scene, grid, tracers: int, every: int | None):
+    """(a function taking one step and returning its CPU seconds) of ``scene`` on ``grid`` with
+    ``tracers`` q = 1 tracers, its ∇⁴ every ``every`` steps (None: the scene's)."""
+    case = scene.make_case()
+    hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s}
+    hv["hypervis_every"] = scene.hypervis_every if every is None else every
+    model = ShallowWater.from_case(grid, case, scene.terms, tracers=tracers, threads=1, **hv)
+    u, v, h = case.initial(grid.lat, grid.lon)
+    x = model.new_state(u, v, h, masses=np.repeat(h[None], tracers, axis=0))
+    stepper = make_stepper(scene.stepper, model, scene.dt)
+    stepper.step(x)  # records the launches (and compiles)
+
+    def step() -> float:
+        t0 = time.process_time()
+        stepper.step(x)
+        return time.process_time() - t0
+
+    return step
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ne", type=int, default=16)
+    parser.add_argument("--tracers", type=int, default=1)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=16, help="steps a round (a multiple of the ∇⁴'s every)")
+    parser.add_argument("--every", type=int, default=None, help="the ∇⁴ every k steps (default: the scene's)")
+    args = parser.parse_args()
+    scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
+    grid = CubedSphere(args.ne, 4)
+    runs = {k: stepping(scene, grid, k, args.every) for k in (0, args.tracers)}
+    seconds = {k: [] for k in runs}
+    for _ in range(args.rounds):
+        for k, step in runs.items():  # interleaved: the machine's load falls on both alike
+            seconds[k].append(sum(step() for _ in range(args.steps)) / args.steps)
+    bare, carried = (statistics.median(seconds[k]) for k in runs)
+    every = scene.hypervis_every if args.every is None else args.every
+    print(
+        f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: a step "
+        f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}; "
+        f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
+        f"(medians of {args.rounds} rounds of {args.steps} steps)"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,125 @@
+"""Passive tracers (issue 125): carried as hq by the depth's own continuity, in the same stages,
+so that q = 1 stays 1 and each tracer's mass is conserved as the depth's; compiled only when a
+scene names them; refused in one line where they cannot ride."""
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from swe_sphere import Simulation
+from swe_sphere.cases.tracers import TRACER_FIELDS
+from swe_sphere.config.scene import SceneError, load_scene, with_days
+from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.steppers import make_stepper
+
+from helpers import cached_grid, make_sim
+from roundoff import bound, mass_change_bound, within
+
+TRACERS = {"names": ["one", "marker"], "initial": ["constant", "latitude"]}
+
+
+@pytest.mark.roundoff
+@pytest.mark.parametrize("per_element", [True, False])
+def test_q_one_stays_one_and_each_tracer_mass_is_conserved(per_element):
+    """TC5 on ne3 np4 with its ∇⁴ every step and topography (the ∇⁴ acts on h + hs: a tracer's on
+    q(h + hs)), 12 SSP-RK3 steps, both kernel layouts: q = 1 rides h to the bit (hq = h: the
+    continuity's arithmetic on the same numbers), within round-off of what the steps accumulate
+    at least; each tracer's mass changes by round-off alone, as h's."""
+    scene = load_scene("tc5_mountain", ne=3, np_=4, stepper="ssprk3")
+    grid, case = cached_grid(3, 4), scene.make_case()
+    hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s}
+    model = ShallowWater.from_case(grid, case, scene.terms, tracers=2, threads=1, per_element=per_element, **hv)
+    u, v, h = case.initial(grid.lat, grid.lon)
+    q = TRACER_FIELDS["gaussian_hills"](grid.lat, grid.lon)
+    x = model.new_state(u, v, h, masses=np.stack([h, h * q]))
+    stepper = make_stepper("ssprk3", model, scene.dt)
+    mass0 = [grid.integrate(r) for r in x.numpy()[2:]]
+    steps = 12
+    for _ in range(steps):
+        stepper.step(x)
+    a = x.numpy()
+    assert np.abs(a[2] - h).max() > 1.0  # the flow moved the depth
+    # the same bits here; at most a rounding of q per stage update and ∇⁴ substep anywhere
+    within(np.abs(a[3] / a[2] - 1.0).max(), bound(4 * steps), "q = 1 after 12 steps")
+    for row, m0 in zip(a[2:], mass0, strict=True):
+        within(abs(grid.integrate(row) - m0) / m0, mass_change_bound(4 * steps, grid.nnodes), "a mass's change")
+    assert np.abs(a[4] / a[2] - q).max() > 1e-3  # the hills moved
+
+
+def test_a_scene_without_tracers_compiles_no_tracer_code():
+    """The tendency kernel holds the tracers' code only when the model has them (its key ends
+    ``__q<K>``): a scene without them runs the kernel it ran before."""
+    scene = load_scene("galewsky", ne=2, np_=4)
+    grid, case = cached_grid(2, 4), scene.make_case()
+    bare = ShallowWater.from_case(grid, case, scene.terms, threads=1)
+    carried = ShallowWater.from_case(grid, case, scene.terms, threads=1, tracers=2)
+    names = lambda m: [n for n in m.rhs_kernels(m.new_state(), m.new_state()) if n.startswith("tendency")]  # noqa: E731
+    assert names(bare) and not any("__q" in n for n in names(bare))
+    assert all(n.endswith("__q2") for n in names(carried))
+    assert bare.rows == 3 and carried.rows == 5
+
+
+def test_a_run_file_holds_each_tracer_as_a_cf_variable_and_its_mass(tmp_path):
+    """Galewsky's jet on ne2 np4 with q = 1 and a latitude marker, to day 0.25 (rk4, its ∇⁴):
+    the run file holds each tracer's q (time, ncol) with units "1", its mass series and change;
+    q = 1 stays 1 within the stages' round-off, the masses' changes within theirs."""
+    scene = load_scene("galewsky", ne=2, np_=4, days=0.25, output={"every_days": 0.125}, tracers=TRACERS)
+    sim = make_sim(scene)
+    result = sim.run(tmp_path / "run.nc", overwrite=True)
+    with xr.open_dataset(tmp_path / "run.nc", decode_times=False) as ds:
+        assert ds.one.dims == ("time", "ncol") and ds.one.attrs["units"] == "1"
+        assert "passive tracer marker" in ds.marker.attrs["long_name"]
+        steps = int(ds.steps[-1])
+        within(float(np.abs(ds.one - 1.0).max()), bound(result.rhs_evals + steps), "q = 1 in the run file")
+        initial = ds.marker.isel(time=0)
+        assert np.allclose(initial, ds.lat, atol=1e-12)  # the latitude marker starts as the latitude
+        assert float(np.abs(ds.marker.isel(time=-1) - initial).max()) > 1e-3  # and moves with the flow
+        for name in ("one", "marker"):
+            assert ds[f"{name}_mass"].attrs["units"] == "m3"
+            change = float(np.abs(ds[f"{name}_mass_change"]).max())
+            within(change, mass_change_bound(result.rhs_evals + steps, sim.grid.nnodes), f"{name}'s mass change")
+
+
+@pytest.mark.parametrize(
+    "tables, words",
+    [
+        ({"stepper": "leapfrog"}, ["stepper leapfrog", "explicit Runge-Kutta"]),
+        ({"tracers": {"names": ["h"], "initial": ["constant"]}}, ["tracers.names", "distinct"]),
+        ({"tracers": {"names": ["dye"], "initial": ["smoke"]}}, ["tracers.initial", "'smoke'"]),
+        ({"tracers": {"names": ["a", "b"], "initial": ["constant"]}}, ["tracers.initial", "each of the 2"]),
+        ({"case": {"name": "tc1_cosine_bell"}, "terms": ["continuity"]}, ["fluid depth", "tc1_cosine_bell"]),
+    ],
+)
+def test_tracers_that_cannot_ride_are_refused_in_one_line(tables, words):
+    """A scene's [tracers] refused by one line naming the key or the stepper."""
+    tables = {"tracers": {"names": ["dye"], "initial": ["constant"]}} | tables
+    stepper = tables.pop("stepper", None)
+    with pytest.raises(SceneError) as err:
+        load_scene("galewsky", ne=2, np_=4, stepper=stepper, **tables)
+    line = str(err.value)
+    assert "\n" not in line
+    for word in words:
+        assert word in line
+
+
+def test_a_restart_carries_the_tracers_bitwise(tmp_path):
+    """Galewsky ne2 np4 with two tracers, to day 0.25 at once and in two halves through a restart
+    file: the same final state, tracer masses included, to the bit; the file holds each mass."""
+    scene = load_scene("galewsky", ne=2, np_=4, days=0.25, output={"every_days": 0.125}, tracers=TRACERS)
+    whole = make_sim(scene)
+    whole.run(tmp_path / "whole.nc")
+    half = make_sim(with_days(scene, 0.125))
+    half.run(tmp_path / "half.nc", restart_every=0.125)
+    with xr.open_dataset(tmp_path / "half.restart.nc") as ds:
+        assert ds.one_mass.attrs["units"] == "m" and ds.marker_mass.dims == ("node",)
+    rest = Simulation.from_checkpoint(tmp_path / "half.restart.nc", days=0.25, device="cpu", progress=False)
+    rest.run(tmp_path / "rest.nc")
+    assert whole.x.numpy().shape[0] == 5
+    assert np.array_equal(rest.x.numpy(), whole.x.numpy())
+
+
+def test_an_ensemble_refuses_tracers_in_one_line():
+    """Members' states carry u, v and h alone: a run of members with [tracers] is refused."""
+    scene = load_scene("galewsky", ne=2, np_=4, tracers=TRACERS)
+    with pytest.raises(SceneError, match="run of members"):
+        Simulation(scene, "cpu", members=2, progress=False)

@@ -5,21 +5,23 @@ step: ``--every 1``): the CPU seconds (``time.process_time``, one thread: the cl
 machine can still compare) of a step with K tracers and without, interleaved in rounds, the
 median of each taken. Prints the ratio (step with K − step without) / (K · step without).
 
-    SWE_SPHERE_THREADS=1 python benchmarks/tracer_cost.py --ne 16 --tracers 1 --rounds 5
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 16 --tracers 1 --rounds 5
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from swe_sphere.config.scene import load_scene
-from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.steppers import make_stepper
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py
+from results import positive, quiet_warp, recorded
+
+from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
 
 def stepping(scene, grid, tracers: int, every: int | None):
@@ -44,12 +46,19 @@ def stepping(scene, grid, tracers: int, every: int | None):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ne", type=int, default=16)
-    parser.add_argument("--tracers", type=int, default=1)
-    parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--steps", type=int, default=16, help="steps a round (a multiple of the ∇⁴'s every)")
-    parser.add_argument("--every", type=int, default=None, help="the ∇⁴ every k steps (default: the scene's)")
+    parser.add_argument("--ne", type=positive(int), default=16)
+    parser.add_argument("--tracers", type=positive(int), default=1)
+    parser.add_argument("--rounds", type=positive(int), default=5)
+    parser.add_argument("--steps", type=positive(int), default=16, help="steps a round (a multiple of the ∇⁴'s every)")
+    parser.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
     args = parser.parse_args()
+    quiet_warp()
+    with recorded(__file__, None if args.every is None else f"tracer_cost_every{args.every}") as figures:
+        measure(args, figures)
+
+
+def measure(args, figures: dict) -> None:
+    """``main``'s rounds and line; the ratio into ``figures``."""
     scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
     grid = CubedSphere(args.ne, 4)
     runs = {k: stepping(scene, grid, k, args.every) for k in (0, args.tracers)}
@@ -59,6 +68,7 @@ def main() -> None:
             seconds[k].append(sum(step() for _ in range(args.steps)) / args.steps)
     bare, carried = (statistics.median(seconds[k]) for k in runs)
     every = scene.hypervis_every if args.every is None else args.every
+    figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
     print(
         f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: a step "
         f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}; "

@@ -27,6 +27,7 @@ TABLES = {
     "ensemble": "The scene's ensemble: its members and how they start.",
     "planet": "The planet (Williamson et al. 1992's Earth by default).",
     "numerics": "Floating-point choices.",
+    "tracers": "Passive tracers q, carried as hq by the depth's own continuity (explicit Runge-Kutta steppers).",
 }
 
 # "table.key" (or "key" at the top level) -> (default, meaning). Units are SI unless said.
@@ -136,6 +137,12 @@ KEYS = {
     "numerics.precision": (
         '"float64"',
         'the tendency\'s floating-point type, "float64" or "float32" (the state float64 either way)',
+    ),
+    "tracers.names": ("none", "the tracers' names: distinct identifiers, each a variable of the run file (q, units 1)"),
+    "tracers.initial": (
+        "none",
+        "each tracer's initial field, by name: constant, latitude, cosine_bells, gaussian_hills, slotted_cylinders, "
+        "correlated_bells (Lauritzen et al. 2012)",
     ),
 }
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from .config.scene import LOAD_KEYWORDS, flat_overrides
-from .config.state_scene import is_state_file, state_scene
+from .config.scene import LOAD_KEYWORDS, flat_overrides, load_scene
+from .config.state_scene import is_state_file
 from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
 from .core.errors import OutputError, SceneError
@@ -36,7 +36,7 @@ def run(
     scene : str, path, Scene or xarray.Dataset
         A scene file, the name of a bundled scene ("tc5_mountain") or a ``config.Scene``; or a
         reanalysis state, a netCDF file (``*.nc``) or a Dataset of height and wind on a lat-lon
-        grid (``io.reanalysis``), run with case 7's settings (``config.state_scene``); its
+        grid (``io.reanalysis``), run with case 7's settings (``config.scene.load_scene``); its
         level, time and truncation as ``case={"level": 500, "time": "month=1"}``.
     device : {"cpu", "cuda"}, optional
         Warp device (default: ``SWE_SPHERE_DEVICE`` where set, else CUDA when present, else the CPU).
@@ -133,7 +133,7 @@ def _run(scene, overrides, device, output_file, overwrite, restart_every, progre
 @contextlib.contextmanager
 def state_source(scene, overrides: dict):
     """(scene, overrides) as ``run`` takes them, a reanalysis file's path (``*.nc``) or an
-    ``xarray.Dataset`` made into its ``Scene`` (``config.state_scene``; the Dataset written to a
+    ``xarray.Dataset`` made into its ``Scene`` (``config.scene.load_scene``; the Dataset written to a
     temporary file for the run's length), with no overrides left; else as given."""
     import xarray as xr
 
@@ -143,12 +143,12 @@ def state_source(scene, overrides: dict):
     keywords = {name: overrides.pop(key) for key, name in LOAD_KEYWORDS.items() if key in overrides}
     with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
         if not isinstance(scene, xr.Dataset):
-            yield state_scene(scene, flat_overrides(overrides), **keywords), {}
+            yield load_scene(scene, overrides=flat_overrides(overrides), **keywords), {}
             return
         path = Path(tmp) / "dataset.nc"
         scene.to_netcdf(path)
         try:
-            yield state_scene(path, flat_overrides(overrides), **keywords), {}
+            yield load_scene(path, overrides=flat_overrides(overrides), **keywords), {}
         except SceneError as err:  # the Dataset's refusals name it, not the temporary file that holds it
             raise SceneError(str(err).replace(f"initial file {path}", "the Dataset given")) from None
 

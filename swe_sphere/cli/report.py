@@ -136,6 +136,16 @@ def courant_line(c: dict, day: float, over: str = "nodes") -> str:
     return f"Courant     advective {c['courant_advective']:.3f}{grav} (max over {over} at t = {day:g} d)"
 
 
+def scene_notes(scene, continued) -> tuple:
+    """The notes of ``scene``; of a continuation's (``continued``: the restart file), the notes
+    on its dt said as the first run's, whose dt goes on (that run's restart interval, not this one's)."""
+    if continued is None:
+        return scene.notes
+    return tuple(
+        f"{n} (the run continued, {continued.name}: its dt goes on)" if n.startswith("dt ") else n for n in scene.notes
+    )
+
+
 def print_notes(notes, root: bool) -> None:
     """The header's notes: a ``warning: `` one on stderr (rank 0's alone: seen with stdout
     redirected), the others as ``note`` lines."""
@@ -176,7 +186,7 @@ def _courant_notes_outputs(args, sim, output, c) -> None:
     scene = sim.scene
     print(courant_line(c, sim.time))
     extra = [n for n in (sim.stability_warning(), sim.backend.threads_note()) if n]
-    print_notes((*scene.notes, *extra), sim.root)
+    print_notes((*scene_notes(scene, args.continue_from), *extra), sim.root)
     only = f": {', '.join(scene.output_fields)}" if scene.output_fields else ""
     print_output(scene, output, only)
     print_streams(scene, output)

@@ -163,18 +163,22 @@ def _new_run(args) -> tuple:
     """(the scene, its members or None, the output) of ``run SCENE``: an -s [ensemble] table takes
     --members as its member count."""
     from ..config.scene import load_scene
-    from ..config.state_scene import is_state_file, start_overrides, state_scene
+    from ..config.state_scene import start_overrides
 
     if args.scene is None:
         raise ValueError("run needs a SCENE (or --continue CHECKPOINT)")
     overrides = {**scene_overrides(args), **({"output.cells": False} if args.no_cells else {})}
+    if args.members is not None and overrides.get("ensemble.members", args.members) != args.members:
+        raise ValueError(
+            f"--members {args.members} and -s ensemble.members={overrides['ensemble.members']}: give one of them"
+        )
     if args.members is not None and any(k.startswith("ensemble.") for k in overrides):
         overrides.setdefault("ensemble.members", args.members)
     overrides |= start_overrides(args.initial if args.members is None else None, args.level, args.time, args.truncation)
     given = {"ne": args.ne, "np_": args.np, "dt": args.dt, "days": args.days, "stepper": args.stepper}
     # a dt the scene scales is cut to divide the restart interval too
     given |= {"mesh": args.mesh, "overrides": overrides, "restart_every": args.restart_every}
-    scene = state_scene(args.scene, **given) if is_state_file(args.scene) else load_scene(args.scene, **given)
+    scene = load_scene(args.scene, **given)
     members = args.members
     if members is None and scene.ensemble is not None:  # the scene's [ensemble]
         members = scene.ensemble["members"]
@@ -321,7 +325,16 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     from ..members.units import POLICIES
     from ..model.diagnostics import courant_numbers
     from ..simulation.writers import restart_path
-    from .report import control_line, courant_line, precision_line, print_notes, print_output, print_streams, terms_line
+    from .report import (
+        control_line,
+        courant_line,
+        precision_line,
+        print_notes,
+        print_output,
+        print_streams,
+        scene_notes,
+        terms_line,
+    )
 
     scene, ens = sim.scene, sim.ensemble
     gravity_waves = "pressure_gradient" in scene.terms
@@ -340,14 +353,14 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     if ens.comm is not None:
         where += f", over {ens.comm.size} MPI ranks ({ens.held.size} on rank 0)"
     print(
-        f"ensemble    {ens.members} members {where}; initial states {ens.initial_states}; "
+        f"ensemble    {ens.members} member{'s' if ens.members != 1 else ''} {where}; initial states {ens.initial_states}; "
         f"a blow-up: {POLICIES[ens.blow_up]}"
     )
     if sim.step:
         print(f"continued   from {args.continue_from}, step {sim.step} (day {sim.time:g})")
     if courant:  # NaN gravity-wave numbers (h a tracer) stay NaN
         print(courant_line({k: max(c[k] for c in courant) for k in courant[0]}, sim.time, "nodes and members"))
-    print_notes(scene.notes, ens.root)
+    print_notes(scene_notes(scene, args.continue_from), ens.root)
     if ens.alike and ens.root:  # a run of N copies: say so before it, not only by a spread of 0 m after it
         print(f"swe-sphere: warning: {alike_line(ens.members)}", file=sys.stderr)
     print_output(scene, output)

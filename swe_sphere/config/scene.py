@@ -116,6 +116,7 @@ from .resolve import (
 )
 from .resolved import Scene, scene_from_dict, with_days
 from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
+from .state_scene import TEMPLATE, is_state_file, start_overrides
 from .step_rule import DT_NOTES, Times, scene_dt
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
@@ -219,6 +220,7 @@ def load_scene(
         names the field); duplicate terms, or terms that omit what the case needs
         (``Case.required_terms``).
     """
+    _not_a_dataset("path", path)
     instance_argument(
         "path", path, (str, os.PathLike), "a scene file's path or a bundled scene's name (str)", SceneError
     )
@@ -234,8 +236,25 @@ def load_scene(
         if np_ is not None:
             raise SceneError(f"np = {np} and np_ = {np_}: give one of them (np_ is np's other name)")
         np_ = np
+    if is_state_file(path):  # a reanalysis file: case 7's settings, started from it
+        keywords = dict(ne=ne, np_=np_, dt=dt, days=days, stepper=stepper, mesh=mesh, precision=precision)
+        scene = load_scene(
+            TEMPLATE, **keywords, overrides=overrides | start_overrides(path), restart_every=restart_every
+        )
+        description = f"Williamson et al. (1992) case 7 from {Path(path).name} (settings of {TEMPLATE})"
+        return dataclasses.replace(scene, name=Path(path).stem, description=description)
     given = {"ne": ne, "np_": np_, "dt": dt, "days": days, "stepper": stepper, "precision": precision}
     return _resolve(resolve_path(str(path)), given, mesh, overrides, restart_every)
+
+
+def _not_a_dataset(name: str, value) -> None:
+    """``SceneError`` for an xarray Dataset given where a scene goes: a state, which
+    ``swe_sphere.run`` takes and a scene takes from a file."""
+    if type(value).__module__.partition(".")[0] == "xarray":
+        raise SceneError(
+            f"{name}: an xarray {type(value).__name__} is a state, not a scene: swe_sphere.run(dataset) runs it; "
+            "here give its file (dataset.to_netcdf(PATH), then PATH)"
+        )
 
 
 def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None) -> Scene:
@@ -450,6 +469,7 @@ def resolve_scene(scene, overrides: dict) -> tuple[Scene, tuple]:
         if overrides:
             raise SceneError("overrides apply to a scene file; change a Scene with dataclasses.replace")
         return scene, ()
+    _not_a_dataset("scene", scene)
     instance_argument(
         "scene", scene, (str, os.PathLike), "a Scene, a scene file's path or a bundled scene's name", SceneError
     )

@@ -17,7 +17,7 @@ from .errors import ArgumentError
 
 def got(value) -> str:
     """A refused value for a message: its repr (shortened), and its type where that is not a number's."""
-    text = repr(value)
+    text = " ".join(repr(value).split())  # one line: a Dataset's or an array's repr spans several
     text = text if len(text) <= 60 else text[:57] + "..."
     number = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
     return text if number else f"{text}, a {type(value).__name__}"

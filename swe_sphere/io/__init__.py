@@ -4,13 +4,15 @@
 volumes), ``remap`` (to a lat-lon grid), ``restart_file`` (the restart file's layout),
 ``initial_state`` (a start of one's own: a file or a function), ``reanalysis`` (a reanalysis
 file's state analysed into spherical harmonics; Williamson's case 7), ``units`` (the units files
-carry), ``observations`` (h observed at points, what an assimilation reads of a run).
+carry), ``observations`` (h observed at points, what an assimilation reads of a run),
+``formats`` (netCDF or GRIB by a file's first bytes).
 
 May import: ``core``, ``grid``, ``model``, ``cases``, ``solvers``, ``steppers``, ``kernels``.
 """
 
 __all__ = [
     "dual",
+    "formats",
     "initial_state",
     "observations",
     "reanalysis",

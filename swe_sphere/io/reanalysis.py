@@ -42,6 +42,7 @@ from ..cases.library import Case
 from ..cases.reference import SpectralReference, reference_path, spectral_fields, synthesis
 from ..core.constants import EARTH
 from ..core.errors import SceneError
+from .formats import refuse_grib
 from .units import DEPTH_UNITS, GEOPOTENTIAL_UNITS, LAT_UNITS, LON_UNITS, PRESSURE_UNITS, WIND_UNITS, normal
 
 G0 = 9.80665  # m s⁻²: WMO's standard gravity, geopotential = g₀ × geopotential height
@@ -145,6 +146,7 @@ def _open(source, where: str) -> _Source:
             raise SceneError(f"{where}: is a directory, not a netCDF file")
         if not path.is_file():
             raise SceneError(f"{where}: file not found")
+        refuse_grib(path, where)
         try:
             ds = netCDF4.Dataset(path)
             ds.set_always_mask(True)

@@ -297,6 +297,35 @@ def test_the_reader_s_words(capsys, tmp_path, monkeypatch):
     )
 
 
+def test_grib_is_refused_and_netcdf_without_its_suffix_is_read(capsys, tmp_path, monkeypatch):
+    """Issue 127, item 6: a file is told by its first bytes, not its name. GRIB (ERA5's default)
+    is refused in one line saying what to do, as a scene and as --initial; a netCDF state named
+    without .nc runs as one, and ``load_scene``, ``Simulation`` and ``sweep`` take it as ``run``
+    does; a Dataset where a scene goes is refused in the project's words, in one line."""
+    import swe_sphere
+
+    monkeypatch.chdir(tmp_path)
+    Path("era5.grib").write_bytes(b"GRIB\x00\x00\x00\x02" + bytes(100))
+    Path("era5_download").write_bytes(Path("era5.grib").read_bytes())
+    for scene, flags in (("era5.grib", []), ("era5_download", []), ("tc2_steady", ["--initial", "era5.grib"])):
+        code, _, err = cli_main(capsys, "run", scene, *TINY, "--days", "0.1", *flags)
+        one_line(code, err, 2, "a GRIB file, and states are read from netCDF: convert it (cdo -f nc copy")
+    _dataset().to_netcdf("state")  # no suffix
+    code, out, err = cli_main(capsys, "run", "state", *TINY, "--days", "0.25")
+    assert code == 0 and "case 7 from state" in out, err
+    scene = swe_sphere.load_scene("state", ne=2, np=4, days=0.25)
+    assert scene.name == "state" and scene.case == "reanalysis"
+    assert swe_sphere.Simulation("state", ne=2, np=4, days=0.25).scene == scene
+    args = ("sweep", "state", "--ne", "2", "--days", "0.25", "--steppers", "kgu35", "--dt", "5400,10800")
+    code, _, err = cli_main(capsys, *args, "--output", "s")
+    assert code == 0, err
+    for call in (lambda: swe_sphere.load_scene(_dataset()), lambda: swe_sphere.Simulation(_dataset())):
+        with pytest.raises(SceneError) as raised:
+            call()
+        assert "an xarray Dataset is a state, not a scene: swe_sphere.run(dataset) runs it" in str(raised.value)
+        assert "\n" not in str(raised.value)
+
+
 def test_a_run_from_a_file_and_a_scene_from_one(capsys, tmp_path, monkeypatch):
     """``run FILE.nc``: case 7's settings, the run named after the file, scored against nothing
     (it says so); ``--initial FILE.nc`` with a scene starts the scene from the file; the

@@ -1,0 +1,53 @@
+"""The command line's words on an ensemble and on a continuation (issue 127, item 10): a member
+count given twice is one refusal, a one-member ensemble is said as one member, and a continuation
+says its dt notes as the continued run's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from helpers import TINY, cli_main, one_line
+
+RUN = ("run", "tc5_mountain", *TINY)
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+
+def test_members_given_twice_and_differing_is_refused(capsys):
+    """`--members 2 -s ensemble.members=3` ran 2 members in silence; refused as `--precision` with
+    `-s numerics.precision` is, nothing written; the same count twice runs."""
+    args = (*RUN, "--days", "0.25", "--members", "2", "--perturbation", "1")
+    code, out, err = cli_main(capsys, *args, "-s", "ensemble.members=3", "--output", "m.nc")
+    one_line(code, err, 2, "--members 2 and -s ensemble.members=3: give one of them")
+    assert out == "" and list(Path().iterdir()) == []
+    code, out, err = cli_main(capsys, *args, "-s", "ensemble.members=2", "--output", "m.nc")
+    assert code == 0 and "ensemble    2 members" in out, err
+
+
+def test_one_member_is_said_as_one(capsys):
+    code, out, err = cli_main(capsys, *RUN, "--days", "0.25", "--members", "1", "--perturbation", "1")
+    assert code == 0, err
+    assert "ensemble    1 member in the same launches" in out or "ensemble    1 member each" in out, out
+
+
+def test_a_continuation_says_its_dt_notes_as_the_continued_run_s(capsys):
+    """A run whose dt was cut to divide its restart interval of 0.3 days, continued writing every
+    0.2 days, said "dt cut ... to divide the restart interval of 0.3 days" beside "every 0.2 days"
+    as if this run's: the note now names the run continued, whose dt goes on."""
+    code, out, err = cli_main(capsys, *RUN, "--days", "0.6", "--restart-every", "0.3", "--output", "c.nc")
+    assert code == 0 and "to divide the restart interval of 0.3 days\n" in out, err
+    code, out, err = cli_main(
+        capsys, "run", "--continue", "c.restart.nc", "--days", "1.2", "--restart-every", "0.2", "--no-progress"
+    )
+    assert code == 0, err
+    cut = [line for line in out.splitlines() if "restart interval" in line]
+    assert cut == [
+        "note        dt cut from 3049.41 s to 2880 s to divide the restart interval of 0.3 days "
+        "(the run continued, c.restart.nc: its dt goes on)"
+    ]
+    assert "(every 0.2 days and at the end)" in out

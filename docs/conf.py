@@ -90,7 +90,7 @@ sphinx_gallery_conf = {
     "examples_dirs": "examples",
     "gallery_dirs": "gallery",
     "filename_pattern": r"\.py$",  # every example runs, whatever its name
-    "ignore_pattern": r"__init__\.py|/_",  # helpers named _*.py are imported, not shown
+    "ignore_pattern": r"__init__\.py|^_",  # helpers named _*.py are imported, not shown (matched on the file name)
     "abort_on_example_error": True,
     "matplotlib_animations": False,
     "download_all_examples": False,

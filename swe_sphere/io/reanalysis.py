@@ -339,8 +339,22 @@ def _grid(ds: _Source, values: np.ndarray, lat_dim: str, lon_dim: str, where: st
         lat, values = lat[::-1], values[::-1]
     if lon.size > 1 and lon[1] < lon[0]:
         lon, values = lon[::-1], values[:, ::-1]
+    if lon.size > 4 and abs(lon[-1] - lon[0] - 360.0) <= 1e-4:  # the first meridian again (NCL, GrADS, CDO)
+        differ = float(np.max(np.abs(values[:, -1] - values[:, 0])))
+        if differ > 1e-6 * max(float(np.max(np.abs(values))), 1e-300):
+            raise SceneError(
+                f"{where}: longitude {lon[-1]:g} repeats {lon[0]:g} degrees, but its values differ (by up to "
+                f"{differ:.3g}): not one global field"
+            )
+        lon, values = lon[:-1], values[:, :-1]
     step = 360.0 / max(lon.size, 1)
     if lon.size < 4 or np.max(np.abs(np.diff(lon) - step)) > 1e-4:
+        spacing = np.diff(lon)
+        if lon.size >= 2 and np.ptp(spacing) <= 1e-4 and lon.size * spacing[0] < 360.0 - 1e-4:
+            raise SceneError(
+                f"{where}: longitudes {lon.min():g} to {lon.max():g} degrees every {spacing[0]:g}: a regional "
+                f"grid ({lon.size * spacing[0]:g} of 360 degrees), not the globe"
+            )
         raise SceneError(
             f"{where}: longitudes {lon.min():g} to {lon.max():g} degrees in {lon.size} columns: not equally "
             "spaced around the globe"

@@ -152,6 +152,23 @@ def test_a_point_s_value_is_the_same_whatever_other_points_are_asked_for(lmax):
             assert np.array_equal(values, whole[key][:n]), (key, n, np.max(np.abs(values - whole[key][:n])))
 
 
+@pytest.mark.parametrize("lon0", [0.0, -180.0])
+def test_a_repeated_first_meridian_is_dropped_when_its_values_agree(lon0, tmp_path):
+    """Issue 127, item 7: NCL, GrADS and CDO write the first meridian again at its +360 (0..360 or
+    −180..180 inclusive); the reader drops the repeat where its values are the first's, and gets
+    the state of the file without it, to the bit; a repeat that differs is refused in one line."""
+    plain = _dataset(lon0=lon0)
+    wrapped = xr.concat([plain, plain.isel(lon=[0]).assign_coords(lon=[lon0 + 360.0])], "lon")
+    assert wrapped.sizes["lon"] == 49 and float(wrapped.lon[-1] - wrapped.lon[0]) == 360.0
+    want, got = (analyse(ds, truncation=L) for ds in (plain, wrapped))
+    for key in ("h_surface", "vorticity", "divergence"):
+        assert np.array_equal(getattr(got, key), getattr(want, key)), key
+    broken = wrapped.copy(deep=True)
+    broken["z"][..., -1] += 50.0
+    with pytest.raises(SceneError, match=f"longitude {lon0 + 360:g} repeats {lon0:g} degrees, but its values differ"):
+        analyse(broken, truncation=L)
+
+
 def test_the_bundled_ncep_june_state():
     """NCEP/NCAR's June 500 hPa climatology (T42 Gaussian, Z3 in m): read on its Gaussian rings
     (exact to T63), its area-mean height 5681.6 m (l = 0) and jets of 20-40 m s⁻¹, the wind's divergence
@@ -181,7 +198,8 @@ def _bad(tmp_path):
         "units.nc": (good.assign(z=good.z.assign_attrs(units="kg")), "neither m"),
         "wind_units.nc": (good.assign(u=good.u.assign_attrs(units="knots")), "the wind must be in m s-1"),
         "regional.nc": (regional, "not a global Gaussian or equally spaced grid"),
-        "lon.nc": (good.isel(lon=slice(0, 40)), "not equally spaced around the globe"),
+        "lon.nc": (good.isel(lon=slice(0, 40)), "every 7.5: a regional grid (300 of 360 degrees), not the globe"),
+        "gap.nc": (good.isel(lon=[*range(0, 20), *range(21, 48)]), "not equally spaced around the globe"),
         "two_levels.nc": (xr.concat([good, good.assign_coords(level=[850.0])], "level"), "is 3-D: give a level"),
         "two_times.nc": (
             xr.concat([good, good.assign_coords(time=np.array(["2021-01-16"], dtype="datetime64[ns]"))], "time"),
@@ -194,7 +212,7 @@ def _bad(tmp_path):
         "no_units.nc": (good.assign(z=xr.Variable(good.z.dims, good.z.values)), "has no units"),
         "half_wind.nc": (
             good.assign(u=good.u.isel(lon=slice(0, 24)).rename(lon="lon2")),
-            "0 to 172.5 degrees in 24 columns",
+            "0 to 172.5 degrees every 7.5: a regional grid (180 of 360 degrees)",
         ),
         "wind_grid.nc": (
             good.assign(
@@ -212,7 +230,7 @@ def _bad(tmp_path):
 
 
 def test_bad_files_are_refused_in_one_line_exit_2_nothing_written(capsys, tmp_path, monkeypatch):
-    """Each of 22 bad files or options (a level or time the file lacks, a truncated file, no
+    """Each of 23 bad files or options (a level or time the file lacks, a truncated file, no
     file) gets one line naming the file or value, exit status 2, and no run file."""
     monkeypatch.chdir(tmp_path)
     cases = _bad(tmp_path)

@@ -43,15 +43,14 @@ for stepper, marker in (("rk4", "o"), ("kgu35", "s")):
     ax.loglog([r["cost_per_day"] for r in mine], [r["error"] for r in mine], marker, ls="", label=stepper)
 front = sorted((r for r in rows if r["on_front"]), key=lambda r: r["cost_per_day"])
 ax.loglog([r["cost_per_day"] for r in front], [r["error"] for r in front], "k-", lw=1, label="the front")
-for r in rows:
-    if r["stable"]:
-        ax.annotate(
-            f"ne{r['ne']} np{r['np']}",
-            (r["cost_per_day"], r["error"]),
-            fontsize=8,
-            xytext=(4, 4),
-            textcoords="offset points",
-        )
+for r in front:  # the front's runs named; the others by their colour and place
+    ax.annotate(
+        f"ne{r['ne']} np{r['np']} {r['stepper']}",
+        (r["cost_per_day"], r["error"]),
+        fontsize=8,
+        xytext=(4, 4),
+        textcoords="offset points",
+    )
 ax.set(xlabel="CPU s per simulated day", ylabel="normalized l2 error of h at day 1", title="TC2: the frontier")
 ax.grid(True, which="both", alpha=0.3)
 ax.legend()

@@ -32,7 +32,8 @@ for day in (1.0, 5.0):
 # The jet's zonal mean
 # --------------------
 # ``swe_sphere.zonal_mean`` averages a field over longitude at each output time: the zonal
-# wind's maximum near 45° N stays where it was while the disturbance grows on it.
+# wind's maximum stays near 45° N but weakens and broadens as the growing eddies take the
+# jet's energy (and, on a grid this coarse, the ∇⁴ takes a share of it).
 u = swe_sphere.zonal_mean(ds, "u")
 fig, ax = plt.subplots(figsize=(7, 4))
 for day in (0.0, 5.0):

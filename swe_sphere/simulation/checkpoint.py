@@ -22,7 +22,7 @@ from ..config.resolved import run_end
 from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
 from ..config.step_rule import Times, scene_dt
 from ..core.arguments import path_argument
-from ..core.errors import CheckpointError
+from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
 from ..io import restart_file
 
@@ -133,7 +133,17 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
             "with Simulation.from_checkpoint(..., members=True) (swe-sphere run --continue does)"
         )
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
-    if (stepper is not None and stepper != ck.scene.stepper) or (dt is not None and dt != ck.scene.dt):
+    other = [
+        f"{k} = {v!r}"
+        for k, v, own in (("stepper", stepper, ck.scene.stepper), ("dt", dt, ck.scene.dt))
+        if v not in (None, own)
+    ]
+    if other and members:  # the command line's rule (run --continue with --stepper or --dt) too
+        raise SceneError(
+            f"{' and '.join(other)}: an ensemble continues with its own stepper and dt (no branches yet; "
+            f"the file's: {ck.scene.stepper}, dt = {ck.scene.dt:g} s)"
+        )
+    if other:
         return ck, branch(ck, stepper=stepper, dt=dt, days=days), start, None, False
     # the scene that continues it to ``days``, the state handed out with its t = 0 diagnostics; no second
     # digital filter

@@ -358,7 +358,9 @@ class Simulation:
             ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
             one of the other kind (``members``), or a ``days`` before its step.
         SceneError
-            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps).
+            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps), or any
+            branch of an ensemble's file (``members``: it continues with its own stepper and dt,
+            as ``swe-sphere run --continue`` refuses ``--stepper`` and ``--dt`` for it).
         """
         ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm, members=members)
         kw = {"progress": progress, "comm": comm, "graphs": graphs}

@@ -1,6 +1,7 @@
-"""The command line's words on an ensemble and on a continuation (issue 127, item 10): a member
-count given twice is one refusal, a one-member ensemble is said as one member, and a continuation
-says its dt notes as the continued run's."""
+"""The command line's words on an ensemble and on a continuation (issue 127, items 10 and 11): a
+member count given twice is one refusal, a one-member ensemble is said as one member, a
+continuation says its dt notes as the continued run's, and an ensemble's continuation branches
+neither on the command line nor in Python (one rule)."""
 
 from __future__ import annotations
 
@@ -51,3 +52,26 @@ def test_a_continuation_says_its_dt_notes_as_the_continued_run_s(capsys):
         "(the run continued, c.restart.nc: its dt goes on)"
     ]
     assert "(every 0.2 days and at the end)" in out
+
+
+def test_an_ensemble_s_continuation_branches_in_python_no_more_than_on_the_command_line(capsys):
+    """`run --continue E --stepper rk4` is refused for an ensemble's file; Python's
+    ``from_checkpoint(E, members=True, stepper=..., dt=...)`` branched it: refused alike now, and
+    the same stepper and dt given (no branch) continue."""
+    import swe_sphere
+    from swe_sphere.core.errors import SceneError
+
+    args = (*RUN, "--days", "0.25", "--members", "2", "--perturbation", "1", "--restart-every", "0.25")
+    code, _, err = cli_main(capsys, *args, "--output", "e.nc")
+    assert code == 0, err
+    code, _, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "0.5", "--stepper", "rk4")
+    one_line(code, err, 2, "--stepper: an ensemble continues with its own stepper, dt")
+    own = swe_sphere.Simulation.from_checkpoint("e.restart.nc", "cpu", members=True, progress=False)
+    other = "ssprk3" if own.scene.stepper != "ssprk3" else "rk4"
+    for branch in ({"stepper": other}, {"dt": own.scene.dt / 2}):
+        with pytest.raises(SceneError, match="an ensemble continues with its own stepper and dt") as raised:
+            swe_sphere.Simulation.from_checkpoint("e.restart.nc", "cpu", members=True, progress=False, **branch)
+        assert str(raised.value).startswith(next(iter(branch)))
+    same = {"stepper": own.scene.stepper, "dt": own.scene.dt}
+    again = swe_sphere.Simulation.from_checkpoint("e.restart.nc", "cpu", members=True, progress=False, **same)
+    assert (again.step, again.scene.stepper) == (own.step, own.scene.stepper) and again.step > 0

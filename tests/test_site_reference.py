@@ -48,3 +48,25 @@ def test_the_steppers_page_cites_no_issue_and_no_commit():
 
     cited = {name: HISTORY.findall(inspect.getdoc(cls) or "") for name, cls in STEPPERS.items()}
     assert {name: found for name, found in cited.items() if found} == {}
+
+
+@pytest.mark.parametrize("name", sorted(_entries()))
+def test_numpydoc_reads_an_api_entrys_sections_as_written(name):
+    """Prose after a section without its own header is read as more of that section (a
+    paragraph after Parameters as parameters named by its words): numpydoc renders it mangled."""
+    docscrape = pytest.importorskip("numpydoc.docscrape")  # the docs extra's
+    obj = _resolve(name)
+    objs = {name: obj}
+    if inspect.isclass(obj):
+        objs |= {f"{name}.{k}": v for k, v in vars(obj).items() if not k.startswith("_")}
+    misread = []
+    for where, o in objs.items():
+        doc = inspect.getdoc(o) or ""
+        if not re.search(r"^(Parameters|Returns|Raises|Yields|Attributes)\n-+$", doc, re.M):
+            continue
+        parsed = docscrape.NumpyDocString(doc)
+        sections = ("Parameters", "Returns", "Raises", "Yields", "Attributes", "Other Parameters")
+        names = [p.name for section in sections for p in parsed[section]]
+        # a name, names, or none (a Returns or Raises entry of its type alone)
+        misread += [(where, n) for n in names if not re.fullmatch(r"(\*{0,2}\w+(, \*{0,2}\w+)*)?", n.strip())]
+    assert misread == []

@@ -26,7 +26,7 @@ def directive(sections: Callable[[], list[tuple[str, str, str]]], source: str) -
                 section = nodes.section()
                 section["names"].append(label)
                 self.state.document.note_explicit_target(section, section)
-                section += nodes.title("", "", nodes.literal(title, title))
+                section += nodes.title(title, title)
                 self.state.nested_parse(StringList(body.splitlines(), source), self.content_offset, section)
                 out.append(section)
             return out

@@ -165,19 +165,34 @@ def gradient(
         order), its λ handed back to the ranks; every rank returns the whole-grid ``Gradient``,
         the same bits on any number of ranks. With ``disk``, each rank writes its own part.
 
-    Returns a ``Gradient``. ``ArgumentError`` (a ValueError; one line naming the argument) for a
-    scene that is not a ``Scene``, steps, snapshots or disk_interval not integers ≥ 1, a cost
-    that is not callable, does not fit the grid (``check_nodes``), returns other than (J, λ (3,
-    N)) or a non-finite J, at_steps outside 0 … n, a controlled scene without a history, a
-    history shorter than n or with a bad step, a disk_interval without a disk, a disk that is
-    not an existing folder, a scene in float32 (gradients stay float64), x0 or hs of another shape or not finite, x0's h ≤ 0 where it is a
-    depth, ``parameters`` not a bool or True with a stepper that solves with L, ``comm`` not a
-    communicator, or a scene the adjoint cannot serve (``reverse.refusal``; the JFNK implicit, an
-    exponential stepper); ``SceneError`` for another device; ``BlowUp`` where a state of the run
-    goes bad (non-finite, or h ≤ 0 with a pressure gradient), naming its step, model time and
-    place, as a run's; OSError from the disk; ``StepFailure`` where a solve, recomputed or
-    transposed, misses its ``tol`` within ``maxiter``.
+    Returns
+    -------
+    Gradient
 
+    Raises
+    ------
+    ArgumentError
+        (a ValueError; one line naming the argument) for a scene that is not a ``Scene``,
+        steps, snapshots or disk_interval not integers ≥ 1, a cost that is not callable, does not
+        fit the grid (``check_nodes``), returns other than (J, λ (3, N)) or a non-finite J,
+        at_steps outside 0 … n, a controlled scene without a history, a history shorter than n or
+        with a bad step, a disk_interval without a disk, a disk that is not an existing folder, a
+        scene in float32 (gradients stay float64), x0 or hs of another shape or not finite, x0's
+        h ≤ 0 where it is a depth, ``parameters`` not a bool or True with a stepper that solves
+        with L, ``comm`` not a communicator, or a scene the adjoint cannot serve
+        (``reverse.refusal``; the JFNK implicit, an exponential stepper).
+    SceneError
+        For another device.
+    BlowUp
+        Where a state of the run goes bad (non-finite, or h ≤ 0 with a pressure gradient),
+        naming its step, model time and place, as a run's.
+    OSError
+        From the disk.
+    StepFailure
+        Where a solve, recomputed or transposed, misses its ``tol`` within ``maxiter``.
+
+    Notes
+    -----
     Sources: the model's transposes (``model.transposes``) on a tape of each step (``tape``,
     ``reverse``); checkpointing by Griewank & Walther (2000), ACM TOMS 26:19, in two levels by
     Stumm & Walther (2009), SIAM J. Sci. Comput. 31:1946.

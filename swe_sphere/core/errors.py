@@ -34,7 +34,7 @@ class ArgumentError(SweSphereError, ValueError):
 
     Raised by ``gradient``, ``HeightMisfit``, ``PointHeights``, ``HeightObservations``,
     ``CubedSphere`` and the others' arguments that are not a scene's values (those are
-    ``SceneError``s), before anything is run (``core.arguments``).
+    each a ``SceneError``), before anything is run (``core.arguments``).
     """
 
 

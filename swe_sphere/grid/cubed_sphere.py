@@ -29,7 +29,7 @@ from .gll import gll
 
 
 class CubedSphere:
-    """Cubed-sphere SE grid with ``ne``×``ne`` elements per face and ``np`` GLL points,
+    """Cubed-sphere SE grid with ``ne`` × ``ne`` elements per face and ``np`` GLL points,
     or the part of it made of ``elements`` (an MPI rank's: only those are built and stored).
 
     With ``mesh`` (a checked ``Mesh``), the grid of that quadrilateral mesh through its map

@@ -159,7 +159,7 @@ class Variants:
         return any(key in MODEL_KEYS for key in self.values)
 
     def scenes(self, scene, members: int) -> tuple[list, list]:
-        """The members' scenes (``Scene``s, one a member) and their cases (each scene's
+        """The members' scenes (a ``Scene`` a member) and their cases (each scene's
         ``make_case``, made once: it checks the values). ``ArgumentError`` for a count of
         values other than ``members`` or a value the scene's case refuses."""
         for key, values in self.values.items():

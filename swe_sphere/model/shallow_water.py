@@ -159,17 +159,23 @@ class ShallowWater:
         each tracer's mass ∫hq is conserved as h's; 0: the tendency kernels hold no tracer code.
         With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``).
 
+    Raises
+    ------
+    ValueError
+        An unknown term, a negative ν, or the forcing term without a forcing or without any
+        tendency term to add to.
+    ArgumentError
+        (a ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
+        ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle or
+        ``tracers`` not numbers in range, tracers without the continuity term, a ``device`` that is
+        not a name, or a ``device`` other than its ``topology``'s (the model's arrays would live
+        where its launches do not: an illegal memory access on CUDA).
+
+    Notes
+    -----
     The state is a ``wp.array2d`` (3 + K, N) of rows u, v (m s⁻¹, east/north), h
     (fluid depth, m) and the K tracer masses hq (m), element-local and continuous (equal on all
     copies); ``rows`` = 3 + K.
-
-    Raises ``ValueError`` for an unknown term, a negative ν, or the forcing
-    term without a forcing or without any tendency term to add to; ``ArgumentError`` (a
-    ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
-    ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle or
-    ``tracers`` not numbers in range, tracers without the continuity term, a ``device`` that is not a name, or a ``device`` other than its
-    ``topology``'s (the model's arrays would live where its launches do not: an illegal
-    memory access on CUDA).
     """
 
     # what writes the launches of the operators built on this model (the gravity-wave operator,

@@ -78,6 +78,24 @@ def make_sim(scene):
 RUN_TIMES = ("wall_time", "cpu_time")  # a run file's measured series: differ between any two runs
 
 
+def members_run(scene, members=None, initial=None, **kw) -> Simulation:
+    """A run of ``members`` (None: the scene's [ensemble] ``members``) from ``initial``, without a
+    progress bar: ``Simulation(scene, members=members, initial=initial, ...)``, what the deprecated
+    ``Ensemble(scene, members, initial)`` makes."""
+    return Simulation(scene, members=members, initial=initial, **{"progress": False, **kw})
+
+
+def members_from_checkpoint(path, **kw) -> Simulation:
+    """A members' restart file continued (``Simulation.from_checkpoint(path, members=True)``), no bar."""
+    return Simulation.from_checkpoint(path, members=True, **{"progress": False, **kw})
+
+
+def take_steps(sim: Simulation, n: int):
+    """``n`` more steps of ``sim`` at its fixed Δt (``advance`` by their days, the scene lengthened
+    past its end), what the deprecated ``Ensemble.step(n)`` took; ``advance``'s ``RunResult``."""
+    return sim.advance(n * sim.scene.dt / DAY)
+
+
 def watched_run(scene, path, *, device="cpu", check_every=1, graphs=False, setup=None, **kwargs):
     """Run ``scene`` on ``device`` to ``path`` (``Simulation.run``'s ``kwargs``) with
     a callback every 10 steps and a log, checked every ``check_every`` steps, steps

@@ -293,10 +293,10 @@ def _ensemble_summary(sim, result, start: list, since: float) -> None:
     print("summary")
     print(
         f"  wall time   {loop:.2f} s for {steps} steps ({1e3 * loop / max(steps, 1):.2f} ms/step, "
-        f"{1e3 * loop / max(steps, 1) / sim.members:.3f} ms a member), setup {result.setup_time:.2f} s"
+        f"{1e3 * loop / max(steps, 1) / len(sim.members):.3f} ms a member), setup {result.setup_time:.2f} s"
     )
-    end, errors = sim.invariants(), sim.errors()  # collective
-    kept = [k for k in range(sim.members) if k not in sim.dropped]  # a member dropped has no state to score
+    end, errors = sim.members.invariants(), sim.members.errors()  # collective, by member
+    kept = [k for k in range(len(sim.members)) if k not in sim.dropped]  # a member dropped has no state to score
     invariant = start[0] if sim.case.h_is_depth else ["mass"]  # h a tracer (TC1): its mass alone, as a run's
     for key in invariant if kept else ():
         change = [end[k][key] / start[k][key] - 1 for k in kept]
@@ -336,7 +336,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
         terms_line,
     )
 
-    scene, ens = sim.scene, sim.ensemble
+    scene, ens = sim.scene, sim.members
     gravity_waves = "pressure_gradient" in scene.terms
     states = [x for k, x in enumerate(sim.states()) if k not in sim.dropped]  # a continued run's dropped: NaN
     courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
@@ -427,7 +427,7 @@ def _run(args, scene, members, output, device, comm) -> int:
         if args.restart_every is not None:  # a new run's: in ``command``
             restart_marks(sim.scene, args.restart_every)  # the checkpoint's scene, before the header
             check_target(restart_path(output), args.overwrite)  # where the interval is the checkpoint's own
-    since, start = sim.time, sim.invariants() if members else None  # collective: the members' drift
+    since, start = sim.time, sim.members.invariants() if members else None  # collective: the members' drift
     if members:
         _ensemble_header(args, sim, output, device)
     else:

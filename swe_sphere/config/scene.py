@@ -455,6 +455,7 @@ LOAD_KEYWORDS = {
     "stepper": "stepper",
     "mesh": "mesh",
     "precision": "precision",
+    "members": "members",
 }
 
 

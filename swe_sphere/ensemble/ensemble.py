@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..core.arguments import integer_argument
 from ..core.errors import ArgumentError, SceneError
-from ..simulation.simulation import Simulation
+from ..simulation.simulation import RENAMED, Simulation
 
 __all__ = ["Ensemble"]
 
@@ -86,23 +86,24 @@ class Ensemble(Simulation):
     step_count = _old_name("step_count", "step", lambda ens: ens.core.step)
     day = _old_name("day", "time", lambda ens: ens.time)
     wall_time = _old_name("wall_time", 'counters["wall_time"]', lambda ens: ens.counters["wall_time"])
-    initial = _old_name("initial", "initial_states", lambda ens: ens.ensemble.initial_states)
+    initial = _old_name("initial", "members.initial_states", lambda ens: ens.members.initial_states)
     dt = _old_name("dt", "scene.dt", lambda ens: ens.scene.dt)
 
     def __getattr__(self, name: str):
-        """The members' part's old attributes (``held``, ``layout``, ``units``, ``copies``, …)."""
-        ensemble = self.__dict__.get("ensemble")
-        if ensemble is None or name.startswith("_"):
-            raise AttributeError(name)
-        _renamed(name, f"ensemble.{name}")
-        return getattr(ensemble, name)
+        """The members' part's old attributes (``held``, ``layout``, ``units``, ``copies``, …), and
+        ``Simulation``'s old names."""
+        members = self.__dict__.get("members")
+        if members is None or name.startswith("_") or name in RENAMED:
+            return super().__getattr__(name)
+        _renamed(name, f"members.{name}")
+        return getattr(members, name)
 
     def fields(self, member: int):
         """Deprecated: ``states()[member]``. (u, v, h), each (n,), of ``member``."""
         _renamed("fields(member)", "states()[member]")
         member = integer_argument("member", member, 0)
-        if member >= self.members:
-            raise ArgumentError(f"member must be in 0..{self.members - 1} (got {member})")
+        if member >= len(self.members):
+            raise ArgumentError(f"member must be in 0..{len(self.members) - 1} (got {member})")
         return tuple(self.states()[member].copy())
 
     def run(self, output=None, *, progress: bool | None = None, **kw):
@@ -112,9 +113,6 @@ class Ensemble(Simulation):
             self.progress = progress
         result = super().run(output, **kw)
         return result if output is None else Path(output)
-
-    def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
-        return super().write_checkpoint(path, overwrite=overwrite, restart_every=restart_every)
 
     @classmethod
     def from_checkpoint(cls, path, *, days=None, device=None, per_element=None, threads=None, graphs=None, comm=None):

@@ -465,13 +465,14 @@ def element_mesh(ds, record: MeshFile) -> Mesh:
 
 def node_dataset(grid: CubedSphere, hs: np.ndarray, day: float, fields: dict, attrs: dict):
     """One output time as an ``xarray.Dataset`` laid out as a run file's (``RunWriter``):
-    the element-local ``fields`` (N,) (name → array, of ``OUTPUT_FIELDS``) and ``hs``
-    on the unique nodes ``ncol`` with their ``FIELDS`` attributes, ``lat``/``lon``
+    the element-local ``fields`` (n,), or (members, n) (name → array, of ``OUTPUT_FIELDS``) and ``hs``
+    on the unique nodes ``ncol`` (``member``, ``ncol``) with their ``FIELDS`` attributes, ``lat``/``lon``
     (degrees) coordinates, ``area`` (m²), a scalar ``time`` (days, ``TIME_ATTRS``) and ``attrs``."""
     import xarray as xr
 
+    dims = {name: ("member", "ncol")[2 - np.ndim(f) :] for name, f in fields.items()}
     ds = xr.Dataset(
-        {name: ("ncol", grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
+        {name: (dims[name], grid.to_unique(f), {**FIELDS[name], **FIELD_ATTRS}) for name, f in fields.items()},
         coords=dict(
             lat=("ncol", grid.to_unique(np.degrees(grid.lat)), NODE_COORDINATES["lat"]),
             lon=("ncol", grid.to_unique(np.degrees(grid.lon)), NODE_COORDINATES["lon"]),

@@ -190,6 +190,24 @@ class Variants:
         return "variants: " + "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vs)}" for k, vs in self.values.items())
 
 
+def asked(scene, members, start, required: bool = False) -> tuple[int | None, object]:
+    """(N, start) of a run's members: ``members``, else the scene's [ensemble] ``members``, None
+    where neither names them (a single run; ``ArgumentError`` where ``required``), and ``start``
+    (``Simulation``'s ``initial``), else the [ensemble]'s ``Perturbation`` where its amplitude is
+    above 0, a perturbation's band checked within the grid's degrees (``check_band``)."""
+    table = scene.ensemble  # the scene's [ensemble] table, or None
+    if members is None and table is None:
+        if required:
+            raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
+        return None, start
+    members = integer_argument("members", table["members"] if members is None else members, 1)
+    perturbed = start is None and table is not None and table["perturbation"] > 0
+    start = Perturbation(table["perturbation"], table["seed"], table.get("degrees")) if perturbed else start
+    if isinstance(start, Perturbation):  # its band within the grid's degrees, named as it was given
+        check_band(start.degrees, scene, "ensemble.degrees" if perturbed else "initial: perturbation degrees")
+    return members, start
+
+
 def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -> np.ndarray:
     """(N, 3, n) float64 the members' starts from ``initial`` (``Simulation``'s with ``members``: None, an array, a
     ``Perturbation``, a ``MemberFile`` or ``Variants``, whose members' ``cases`` these are) on

@@ -14,17 +14,16 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..cases.scoring import Scorer
-from ..core.arguments import got, integer_argument
+from ..core.arguments import got
 from ..core.errors import ArgumentError, StepFailure
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..io.run_file import area_rms, member_statistics
 from ..members import initial, units
 from ..members.grid import MemberGrid
 from ..model.diagnostics import invariants
 from ..model.shallow_water import ShallowWater
 from .build import check_memory
-from .state_diagnostics import WholeFields
+from .state_diagnostics import MemberAxis, WholeFields
 from .writers import scene_attrs
 
 
@@ -37,7 +36,7 @@ class MemberFields(WholeFields):
     held: list | None = None
 
 
-class Members:
+class Members(MemberAxis):
     """``members`` (N ≥ 1) members of ``scene`` started from ``start`` (``Simulation``'s ``initial``),
     their units built on ``backend`` over the ranks of ``comm`` (rank r steps the r-th of R
     contiguous shares, ``held``), laid out by ``layout`` and ``blow_up`` (``units.layout``,
@@ -53,14 +52,6 @@ class Members:
     last_good = None
 
     def __init__(self, scene, members, start, backend, comm, graphs, layout, blow_up, **options):
-        asked = scene.ensemble  # the scene's [ensemble] table, or None
-        if members is None and asked is None:
-            raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
-        members = integer_argument("members", asked["members"] if members is None else members, 1)
-        table = start is None and asked is not None and asked["perturbation"] > 0  # the scene's perturbation
-        start = initial.Perturbation(asked["perturbation"], asked["seed"], asked.get("degrees")) if table else start
-        if isinstance(start, initial.Perturbation):  # its band within the grid's degrees, named as it was given
-            initial.check_band(start.degrees, scene, "ensemble.degrees" if table else "initial: perturbation degrees")
         self.comm = comm if comm is not None and comm.size > 1 else None
         ranks, rank = (1, 0) if self.comm is None else (self.comm.size, self.comm.rank)
         if members < ranks:
@@ -103,6 +94,10 @@ class Members:
         self.ranks = self.units[0].model.topology if self.comm is None else RankMax(self.comm)
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
             warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
+
+    def __len__(self) -> int:
+        """N, the members."""
+        return self.members
 
     def each(self, read) -> np.ndarray:
         """(held, ..., n): ``read(unit)`` (..., its members·n) of every unit cut into this rank's members'
@@ -148,15 +143,8 @@ class Members:
         v (m s⁻¹) and h (m) on the grid's element-local nodes, continuous, each rank taking its
         members' (a dropped member's, NaN in ``states()``, left out). The steppers go on from them
         as from their own (a multistep stepper's earlier states and a solver's guesses kept).
-        ``ArgumentError`` as for an ``initial`` array, nothing set; a run of one member without
-        ``members``: ``ArgumentError`` (its state is ``x``)."""
-        shape = (self.members, 3, self.grid.nnodes)
-        try:
-            states = np.asarray(states, dtype=float)
-        except (TypeError, ValueError):
-            raise ArgumentError(f"states must be numbers (m s⁻¹ and m) (got {got(states)})") from None
-        if states.shape != shape:
-            raise ArgumentError(f"states must have shape {shape} (got {states.shape})")
+        ``ArgumentError`` as for an ``initial`` array, nothing set."""
+        states = self._states_argument(states, self.grid.nnodes)
         going = [(u, k) for i, (u, k) in enumerate(zip(self.units, self.unit_held)) if i not in self.out]
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         initial.checked_states(states[kept], self.case, "states", kept)
@@ -216,11 +204,19 @@ class Members:
         it stores this day); {} a member for a case with neither (a dropped member's NaN; collective)."""
         return self.everyone(self.errors_of(self.held_states(), self.run.seconds(self.run.step)))
 
-    def h_spread_rms(self) -> float:
-        """The members' spread of h now (m): the area-weighted RMS over the sphere of their
-        standard deviation (``io.run_file.member_statistics``, ``area_rms``), the run file's
-        ``h_spread_rms`` (collective)."""
-        return area_rms(self.grid, member_statistics(self.grid.to_unique(self.states()[:, 2]))[1])
+    def fields(self) -> tuple:
+        """Every member's u, v (m s⁻¹), h (m), (N, n) each on rank 0 ((None, None, None) on the
+        others; a dropped member's NaN; collective)."""
+        each = self.on_root(list(self.held_states()))
+        return (None, None, None) if each is None else tuple(np.stack(each).swapaxes(0, 1))
+
+    def divergence(self) -> np.ndarray | None:
+        """Every member's divergence of the wind (N, n), DSS'd (s⁻¹), on rank 0 (None elsewhere; collective)."""
+        return self.gather_fields(divergence=True).divergence
+
+    def member_g(self) -> list[float]:
+        """Each member's g (m s⁻²), on every rank (collective)."""
+        return self.everyone(self.g)
 
     # -- blow-ups and dropped members -----------------------------------------------------
     def describe(self, bad: tuple) -> str:

@@ -2,13 +2,16 @@
 Oceananigans' pattern: one short loop (``Simulation.run``) and around its steps a small part each
 (the package's doc lists them), of one member or N (issue 116: one driver). Its run loop, restarts
 and driving from Python are its own methods over the functions of ``loop`` and ``checkpoint`` (no
-mixins); ``build`` makes a single run's parts, ``members.Members`` N members', and the state's
-diagnostics are a component (``diagnostics``: ``state_diagnostics`` or the members')."""
+mixins); ``build`` makes a single run's parts, ``members.Members`` N members', and its members'
+states and diagnostics are a component (``members``: ``state_diagnostics.StateDiagnostics`` of one,
+or ``members.Members``), whose answers the simulation's names give under one squeeze rule
+(``squeeze``; issue 124: one run of any size)."""
 
 from __future__ import annotations
 
 import functools
 import time
+import warnings
 from operator import attrgetter
 from pathlib import Path
 
@@ -33,6 +36,7 @@ from ..core.interrupts import StopSignals
 from ..integrator.control import StepControl
 from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
+from ..members.initial import asked
 from ..members.units import member_step
 from . import checkpoint as ckpt
 from .activities import add_callback, log_activity
@@ -44,7 +48,7 @@ from .loop import check_run_arguments, check_run_files, compile_timer, integrate
 from .members import Members, member_starts
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
-from .state_diagnostics import StateDiagnostics
+from .state_diagnostics import MemberAxis, StateDiagnostics
 from .summary import Ledger, RunResult
 from .writers import Checkpointer, RunFiles
 
@@ -52,22 +56,48 @@ from .writers import Checkpointer, RunFiles
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
+# the old names of a simulation's parts, each a one-line ``DeprecationWarning`` where read
+RENAMED = {"ensemble": "members", "diagnostics": "members"}
+
+
+def squeeze(n: int, each):
+    """The one squeeze rule of a simulation's answers of its ``n`` members, given with the member
+    axis first (a list of N dicts or values, an (N, ...) array, or a tuple of them, None off rank
+    0): N = 1 the one member's (a dict, a value, an (n,) array: a single run's shapes), N > 1 as
+    given."""
+    if n > 1 or each is None:
+        return each
+    return tuple(squeeze(n, a) for a in each) if isinstance(each, tuple) else each[0]
+
+
 def _delegated(method, owner):
-    """A simulation's method that is its ``owner(sim)``'s method of ``method``'s name (a single
-    run's diagnostics or the members'), whose doc it has."""
+    """A simulation's method that is its ``owner(sim)``'s method of ``method``'s name (its
+    intervals'), whose doc it has."""
     return functools.wraps(method)(lambda sim, *args, **kw: getattr(owner(sim), method.__name__)(*args, **kw))
 
 
-def _members_only(what: str):
-    """The owner of a simulation's method ``what`` of its members (``Simulation.ensemble``), refused
-    (``ArgumentError`` naming ``what``) for a run made without ``members``."""
+def _squeezed(method):
+    """A simulation's method that is its members' (``MemberAxis``) method of ``method``'s name, its
+    answer squeezed (``squeeze``), whose doc it has."""
+    name = method.__name__
+    return functools.wraps(method)(
+        lambda sim, *a, **kw: squeeze(len(sim.members), getattr(sim.members, name)(*a, **kw))
+    )
 
-    def members(sim) -> Members:
-        if sim.ensemble is None:
-            raise ArgumentError(f"{what}: a run of members (Simulation(..., members=N)); this one has its state in x")
-        return sim.ensemble
 
-    return members
+def _of_one(name: str, attr: str, doc: str) -> property:
+    """A simulation's ``name``: its one member's unit's ``attr`` (``integrator.core.Unit``); for N > 1
+    an ``ArgumentError`` naming ``states()``, which holds every member's."""
+
+    def get(sim):
+        if len(sim.members) > 1:
+            raise ArgumentError(
+                f"Simulation.{name}: a run of {len(sim.members)} members has a state a member; states() gives them "
+                "(N, 3, n) and set_states(states) sets them"
+            )
+        return getattr(sim.core.units[0], attr)
+
+    return property(get, doc=doc)
 
 
 class Simulation:
@@ -80,9 +110,12 @@ class Simulation:
     [ensemble]) it steps N members of the scene, member k with the bits of the single run from
     its initial state: in the same launches on N copies of the grid, or each on a
     model of its own (``layout``), its diagnostics and run files on (N, n) fields
-    (``members.Members``); the same ``run``, ``advance``, ``add_callback``, ``from_checkpoint`` and
-    ``write_checkpoint``, and ``states``, ``set_states``, ``invariants``, ``errors`` and
-    ``h_spread_rms`` of every member.
+    (``members.Members``). Every name means the same for every N: ``fields``, ``divergence``,
+    ``courant``, ``stability_warning``, ``largest_dt_within_limit``, ``invariants``, ``errors`` and
+    ``state`` answer with a single run's shapes and dicts for N = 1 and with the member axis first
+    for N > 1 (``squeeze``); ``states`` and ``set_states`` take (N, 3, n) for every N; ``x``,
+    ``last_good`` and ``try_step`` (one member's state and step) raise ``ArgumentError`` naming
+    ``states()`` for N > 1, and ``stepper`` for members each on a stepper of their own.
 
     Parameters
     ----------
@@ -131,7 +164,8 @@ class Simulation:
         Members: the models' kernel layout and CPU threads (``ShallowWater``'s; None: the device's).
     **overrides
         As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``precision``
-        and any scene value by its table.
+        and any scene value by its table; with ``members``, an [ensemble] table
+        (``ensemble={"perturbation": 1.0}``) takes N as its ``members``, as ``load_scene`` does.
 
     Attributes
     ----------
@@ -148,18 +182,17 @@ class Simulation:
     inputs : tuple of Path
         The files the simulation was made from (scene file, restart file), which
         ``run`` refuses to write over.
-    diagnostics : StateDiagnostics
-        The state's fields gathered on rank 0, invariants, errors, Courant numbers and
-        the log line (``state_diagnostics``); ``fields``, ``divergence``, ``courant``,
-        ``stability_warning`` and ``largest_dt_within_limit`` are also the simulation's.
+    members : StateDiagnostics or Members
+        The members' states and diagnostics over (N, 3, n), N = ``len(members)``, the member axis
+        first in every answer: a single run's (``state_diagnostics.StateDiagnostics``: its fields
+        gathered on rank 0, invariants, errors, Courant numbers, the log line) or N members'
+        (``members.Members``: also ``held``, ``layout``, ``units``, ``copies``, ``alike``,
+        ``initial_states``, …). ``ensemble`` and ``diagnostics`` are its deprecated names.
     intervals : Intervals
         The run's intervals in whole steps and Δt fitted to them (``intervals``); ``every``,
         ``fitted_dt``, ``use_dt`` and ``fit_dt`` are also the simulation's.
     backend : Backend
         The device's choices (``core.backend``), decided once; ``device`` its name.
-    members : int
-        N (1 for a single run); ``ensemble``: the members' part (``members.Members``: ``held``,
-        ``layout``, ``units``, ``copies``, ``alike``, ``initial_states``, …), None for a single run.
 
     Raises
     ------
@@ -196,7 +229,6 @@ class Simulation:
     inputs: tuple = ()
     _of_members = False  # a run of members even where neither ``members`` nor the scene names them (refused)
     restart_every: float | None = None  # days: a continuation's, its checkpoint's (``from_checkpoint``)
-    ensemble: Members | None = None  # the members' part (``members.Members``); None: one run
     check_every = CHECK_EVERY_STEPS
 
     def __init__(
@@ -221,10 +253,13 @@ class Simulation:
         graphs = graphs_mode(default_mode() if graphs is None else graphs)
         # Δt the simulation may fit to the user's intervals (``steps``): not given, restored or stated in a Scene
         own_dt = not isinstance(scene, Scene) and "dt" not in overrides and initial_diagnostics is None
+        if members is not None and any(k.split(".")[0] == "ensemble" for k in overrides):
+            overrides = {**overrides, "members": members}  # N in the scene's table too, as ``load_scene`` takes it
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
-        many = self._of_members or members is not None or scene.ensemble is not None
+        members, initial = asked(scene, members, initial, self._of_members)  # N, or None: a single run
+        many = members is not None
         if many and scene.tracers:
             raise SceneError("[tracers] in a run of members: the members' states carry u, v and h alone")
         if many and (callable(initial) or start is not None):
@@ -253,8 +288,8 @@ class Simulation:
                 self._build_members(*parts, per_element=per_element, threads=threads)
             else:
                 self._build_one(scene, backend, progress, comm, start, initial, initial_diagnostics, graphs)
-            self.counters["iterations"].update(dict.fromkeys(self.stepper.solvers, 0))
-        self.intervals = Intervals(self.run_state, self.activities, self.diagnostics, own_dt)
+            self.counters["iterations"].update(dict.fromkeys(self.core.units[0].stepper.solvers, 0))
+        self.intervals = Intervals(self.run_state, self.activities, self.members, own_dt)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
@@ -270,22 +305,20 @@ class Simulation:
         self.core = Integrator([Unit.of(self.model, stepper, start[None], backend, graphs)])
         # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
         self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
-        self.g, self.members = self.model.g, 1
+        self.g = self.model.g
         parts = (self.model, self.topology, self.grid, self.case, self.scorer, self.hs, self.fcor, self.root)
-        self.diagnostics = StateDiagnostics(self.run_state, *parts)
+        self.members = StateDiagnostics(self.run_state, *parts)
         # the step control made after the start's diagnostics: their Courant numbers at the scene's dt
         if initial_diagnostics is None:
-            self.initial = self.diagnostics.diagnose(scene.start_day * DAY)
+            self.initial = self.members.diagnose(scene.start_day * DAY)
         # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
         if scene.control is not None:
             self.control = StepControl(scene.control, self.core.units[0], scene.start_day)
 
     def _build_members(self, scene, members, initial, backend, comm, graphs, layout, blow_up, **options) -> None:
         """N members' parts (``members.Members``): their units, over the ranks of ``comm`` by member."""
-        m = self.ensemble = self.diagnostics = Members(
-            scene, members, initial, backend, comm, graphs, layout, blow_up, **options
-        )
-        self.members, self.case, self.grid, self.root, self.dfi = m.members, m.case, m.grid, m.root, None
+        m = self.members = Members(scene, members, initial, backend, comm, graphs, layout, blow_up, **options)
+        self.case, self.grid, self.root, self.dfi = m.case, m.grid, m.root, None
         self.progress = self.progress and m.root
         self.model = m.units[0].model
         self.topology, self.hs = self.model.topology, m.hs[0]
@@ -302,6 +335,7 @@ class Simulation:
                 )
             self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
         m.run = self.run_state = RunState(self.core, scene)
+        self.run_state.initial = m.diagnose(scene.start_day * DAY)  # each member's t = 0 diagnostics, (N,) by name
 
     # -- restarts and branches (``checkpoint``)
     @classmethod
@@ -368,7 +402,7 @@ class Simulation:
             states, layout, policy = member_starts(ck)
             both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
             sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
-            restore_run(sim.run_state, ck, lambda: sim.ensemble.restore(ck))
+            sim.restore_history(ck)
         else:
             sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
             if whole:  # a continuation: the stepper's history, the counters and the step control as they were
@@ -382,53 +416,79 @@ class Simulation:
     # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
     scene = forwarded("run_state.scene", "The ``Scene`` run (resolved; a fitted Δt or a lengthened run replace it).")
     control = forwarded("core.control", "The integrator's ``StepControl`` under ``Scene.control``, else None.")
-    initial = forwarded("run_state.initial", "The t = 0 diagnostics relative changes are taken against.")
+    initial = forwarded(
+        "run_state.initial", "The t = 0 diagnostics relative changes are taken against (members: (N,) by name)."
+    )
     counters = forwarded("core.counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
     time = forwarded("run_state.time", "Days since t = 0 at the current step (``RunState.time``).")
     event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
-    # -- the state's diagnostics (``state_diagnostics``): its fields, Courant numbers and stability limit
-    fields = _delegated(StateDiagnostics.fields, attrgetter("diagnostics"))
-    divergence = _delegated(StateDiagnostics.divergence, attrgetter("diagnostics"))
-    courant = _delegated(StateDiagnostics.courant, attrgetter("diagnostics"))
-    stability_warning = _delegated(StateDiagnostics.stability_warning, attrgetter("diagnostics"))
-    largest_dt_within_limit = _delegated(StateDiagnostics.largest_dt_within_limit, attrgetter("diagnostics"))
+    # -- the members' states and diagnostics (``state_diagnostics.MemberAxis``), squeezed (``squeeze``)
+    fields = _squeezed(StateDiagnostics.fields)
+    divergence = _squeezed(StateDiagnostics.divergence)
+    courant = _squeezed(MemberAxis.courant)
+    stability_warning = _squeezed(MemberAxis.stability_warning)
+    largest_dt_within_limit = _squeezed(MemberAxis.largest_dt_within_limit)
+    invariants = _squeezed(StateDiagnostics.invariants)
+    errors = _squeezed(StateDiagnostics.errors)
+    states = _delegated(StateDiagnostics.states, attrgetter("members"))
+    set_states = _delegated(StateDiagnostics.set_states, attrgetter("members"))
+    h_spread_rms = _delegated(MemberAxis.h_spread_rms, attrgetter("members"))
 
     # -- the step: the integrator's (``integrator.core.Integrator``, one unit of one member) and its graphs
     step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
-    stepper = forwarded("core.units.0.stepper", "The stepper (``steppers``), prepared on ``x``.")
-    x = forwarded("core.units.0.x", "The state (3, N) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
-    last_good = forwarded("core.units.0.start", "The state (3, N) at the start of the step or block in progress.")
-    graphs = forwarded("core.units.0.graphed.mode", 'Graph mode: "auto", "on", "off" (or True, False; see Notes).')
+    x = _of_one("x", "x", "The state (3, n) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
+    last_good = _of_one("last_good", "start", "The state (3, n) at the start of the step or block in progress.")
+    # a step of the stepper, not watched nor counted: a controlled run's tries (``integrator.control.StepControl``)
+    try_step = _of_one("try_step", "try_step", "One step of the stepper on a state x (3, n) in place (``Unit``).")
+
+    @property
+    def stepper(self):
+        """The stepper (``steppers``) prepared on the state: the one that steps every member (a single
+        run's, members "shared"); members "in_turn", N > 1: ``ArgumentError`` (one a member, in ``members.units``)."""
+        if len(self.core.units) > 1:
+            raise ArgumentError(
+                f"Simulation.stepper: {len(self.core.units)} members each step on a model and stepper of their own "
+                "(layout 'in_turn'); members.units holds them"
+            )
+        return self.core.units[0].stepper
+
+    @property
+    def graphs(self):
+        """Graph mode of every member's steps: "auto", "on", "off" (or True, False; see Notes)."""
+        return self.core.units[0].graphed.mode
+
+    @graphs.setter
+    def graphs(self, mode) -> None:
+        for u in self.core.units:
+            u.graphed.mode = mode
 
     @property
     def graphs_kept(self) -> int:
         """Step graphs checked and kept (``GraphedSteps.kept``, over the units); 0 where steps run plain."""
         return sum(u.graphed.kept for u in self.core.units)
 
-    graphs_checked = forwarded(
-        "core.units.0.graphed.checked", "Step graphs compared bit for bit with plain ones (``GraphedSteps``).", False
-    )
-
-    # a step of the stepper, not watched nor counted: a controlled run's tries (``integrator.control.StepControl``)
-    try_step = _delegated(Unit.try_step, lambda sim: sim.core.units[0])
-
-    # -- the members' states and diagnostics on (N, n) (``members.Members``; the others refused for one run)
-    states = _delegated(StateDiagnostics.states, attrgetter("diagnostics"))
-    set_states = _delegated(Members.set_states, _members_only("set_states"))
-    invariants = _delegated(Members.invariants, _members_only("invariants"))
-    errors = _delegated(Members.errors, _members_only("errors"))
-    h_spread_rms = _delegated(Members.h_spread_rms, _members_only("h_spread_rms"))
+    @property
+    def graphs_checked(self) -> int:
+        """Step graphs compared bit for bit with plain ones (``GraphedSteps.checked``, over the units)."""
+        return sum(u.graphed.checked for u in self.core.units)
 
     @property
     def dropped(self) -> dict[int, int]:
         """{member: the step it blew up at} of the members dropped (``blow_up`` "drop"; collective)."""
-        return dict(self.diagnostics.dropped)  # a copy: a single run's is its diagnostics' class-wide {}
+        return dict(self.members.dropped)  # a copy: a single run's is its diagnostics' class-wide {}
 
     @property
     def drops(self) -> list[str]:
         """The one line of each member dropped, in the order they were (collective)."""
-        return list(self.diagnostics.drops)
+        return list(self.members.drops)
+
+    def __getattr__(self, name: str):
+        """An old name of a part (``RENAMED``), after its one-line ``DeprecationWarning``."""
+        if name not in RENAMED:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        warnings.warn(f"Simulation.{name} is deprecated: Simulation.{RENAMED[name]}", DeprecationWarning, stacklevel=2)
+        return getattr(self, RENAMED[name])
 
     def run(
         self,
@@ -517,8 +577,8 @@ class Simulation:
             output, overwrite, restart_every, restart_file, compress, history, on_output, notify
         )
         ledger = Ledger(self.counters, self.scene, self.core.step, notify if self.root else None)
-        signals = StopSignals(self.diagnostics.ranks, catch_signals)
-        d, lines = self.diagnostics, progress_lines if self.root else None
+        signals = StopSignals(self.members.ranks, catch_signals)
+        d, lines = self.members, progress_lines if self.root else None
         parts = (self.run_state, self.activities, self, ledger, self.check_every, signals)
 
         def blocks(bar) -> Stop:
@@ -528,7 +588,7 @@ class Simulation:
 
         # the run's own activities (the log after the user's), a single run's solver counters read with the check
         every = self.scene.log_every_steps
-        one = self.ensemble is None
+        one = isinstance(self.members, StateDiagnostics)
         more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
         during = own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
         how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}
@@ -648,19 +708,20 @@ class Simulation:
         -------
         xarray.Dataset or None
             On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
-            vorticity, divergence (s⁻¹) on ``ncol`` with hs, area, lat, lon and ``time``
-            in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other
-            than 0.
+            vorticity, divergence (s⁻¹) on ``ncol`` (N > 1: on (``member``, ``ncol``), the
+            ``squeeze`` rule) with hs, area, lat, lon and ``time`` in days
+            (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
 
         Raises
         ------
         ValueError
             A ``remap`` spacing that does not divide 180 degrees.
         """
-        whole = self.diagnostics.gather_fields(divergence=True)
+        whole = self.members.gather_fields(divergence=True)
         if not self.root:
             return None
-        fields = {k: getattr(whole, k) for k in OUTPUT_FIELDS}
+        each = {k: getattr(whole, k) for k in OUTPUT_FIELDS}  # (n,) a single run's, (N, n) members'
+        fields = {k: squeeze(len(self.members), f) if f.ndim == 2 else f for k, f in each.items()}
         attrs = {"scene": self.scene.as_dict(), "ne": self.scene.ne, "np": self.scene.np, "step": self.core.step}
         ds = node_dataset(self.grid, self.hs, self.time, fields, attrs)
         if remap is None:
@@ -672,28 +733,33 @@ class Simulation:
     # -- restarts: its state and history restored from a checkpoint, its restart file written
 
     def restore(self, ck: ckpt.Checkpoint) -> None:
-        """Set the state, stepper history, counters and t = 0 invariants from a checkpoint (a
-        single run's; ``CheckpointError`` for a state of another grid)."""
-        try:
-            # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            x = self.topology.distribute(ck.x, self.model.rows, "checkpoint state")
-        except ValueError as err:
-            raise CheckpointError(str(err)) from None
-        self.x.assign(x)
+        """Set every member's state, stepper history, the counters and t = 0 invariants from a
+        checkpoint of the run's kind (``CheckpointError`` for a state of another grid)."""
+        if isinstance(self.members, StateDiagnostics):  # ck.x on rank 0 only (``checkpoint.read_on_root``)
+            try:
+                x = self.topology.distribute(ck.x, self.model.rows, "checkpoint state")
+            except ValueError as err:
+                raise CheckpointError(str(err)) from None
+            self.x.assign(x)
         self.restore_history(ck)
 
     def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """The stepper history, counters, step control and t = 0 invariants of a checkpoint (the state
-        is already ``ck.x``)."""
-        restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
-        self.initial = ck.initial
+        """The stepper histories, counters, step control and t = 0 invariants of a checkpoint (a single
+        run's state is already ``ck.x``; members take theirs with their histories, ``Members.restore``)."""
+        if isinstance(self.members, StateDiagnostics):
+            restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
+            self.initial = ck.initial
+        else:
+            restore_run(self.run_state, ck, lambda: self.members.restore(ck))
 
-    def write_checkpoint(self, path, *, overwrite: bool = True, restart_every: float | None = None) -> Path:
+    def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid
         fields, gathered from every rank (call on all), written by rank 0;
         ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
-        state and its stepper's history, the member count, the layout and the variants."""
-        d = self.diagnostics  # (x, stepper states, initial, grid) on rank 0, else None; an ensemble's member count
+        state and its stepper's history, the member count, the layout and the variants. An
+        existing ``path`` is replaced only with ``overwrite`` (else ``OutputError``), as every
+        writer of the package does."""
+        d = self.members  # (x, stepper states, initial, grid) on rank 0, else None; an ensemble's member count
         parts, kept = d.restart_parts(), {"overwrite": overwrite, "restart_every": restart_every, "members": d.members}
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
@@ -704,7 +770,7 @@ class Simulation:
         the start's gathered fields, its Courant numbers (a single run's) and its members'
         diagnostics (None for a single run). ValueError for a user's activity under a name the
         run gives its own."""
-        d, paths = self.diagnostics, (output, restart_every, restart_file, overwrite)
+        d, paths = self.members, (output, restart_every, restart_file, overwrite)
         ckp = Checkpointer(self.run_state, self.write_checkpoint, d.bcast, self.root, *paths)
         files = RunFiles(self.run_state, d, self.grid, self.hs, output, on_output, d.series)
         check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)

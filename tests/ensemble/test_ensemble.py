@@ -9,12 +9,12 @@ import pytest
 
 from swe_sphere.config.scene import load_scene
 from swe_sphere.core.errors import ArgumentError, BlowUp
-from swe_sphere.ensemble import Ensemble, MemberGrid, Perturbation
+from swe_sphere.ensemble import MemberGrid, Perturbation
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers import STEPPERS
 
-from helpers import ON_CUDA
+from helpers import ON_CUDA, members_run, take_steps
 
 SMALL = {"ne": 2, "np": 4, "dt": 900.0}
 
@@ -29,29 +29,29 @@ EXPLICIT = [name for name, cls in STEPPERS.items() if cls.explicit]
 
 @pytest.mark.parametrize("stepper", EXPLICIT)
 def test_each_member_has_the_bits_of_its_single_run(stepper):
-    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, layout="shared", **SMALL)
+    ens = members_run("galewsky", 3, Perturbation(2.0, seed=4), device="cpu", stepper=stepper, layout="shared", **SMALL)
     starts = ens.states()
     assert not same_bits(starts[0], starts[1])  # the members differ
-    ens.step(4)
+    take_steps(ens, 4)
     for k in range(3):
         sim = Simulation("galewsky", "cpu", progress=False, start=starts[k], stepper=stepper, **SMALL)
         sim.advance(4 * SMALL["dt"] / 86400)
         assert same_bits(ens.states()[k], sim.x.numpy()), k
         assert ens.model.hv.biharmonic_radius() == sim.model.hv.biharmonic_radius()  # the one grid's: its ∇⁴ plan
-        assert same_bits(np.stack(ens.fields(k)), sim.x.numpy())
+        assert same_bits(np.stack(ens.states()[k]), sim.x.numpy())
         invariants = ens.invariants()[k]
-        assert invariants == {key: sim.diagnostics.diagnose(sim.time)[key] for key in invariants}
+        assert invariants == {key: sim.members.diagnose(sim.time)[key] for key in invariants}
 
 
 @pytest.mark.parametrize(("scene", "stepper"), [("galewsky", "rk4"), ("tc5_mountain", "kgu35")])
 def test_the_per_node_layout_too(scene, stepper):
     """CUDA's layout (one thread a node), here on the CPU: member k against N = 1."""
-    states = Ensemble(scene, 2, Perturbation(1.0, seed=2), device="cpu", stepper=stepper, **SMALL).states()
-    ens = Ensemble(scene, 2, states, device="cpu", per_element=False, stepper=stepper, layout="shared", **SMALL)
-    ens.step(3)
+    states = members_run(scene, 2, Perturbation(1.0, seed=2), device="cpu", stepper=stepper, **SMALL).states()
+    ens = members_run(scene, 2, states, device="cpu", per_element=False, stepper=stepper, layout="shared", **SMALL)
+    take_steps(ens, 3)
     for k in range(2):
-        one = Ensemble(scene, 1, states[k : k + 1], device="cpu", per_element=False, stepper=stepper, **SMALL)
-        one.step(3)
+        one = members_run(scene, 1, states[k : k + 1], device="cpu", per_element=False, stepper=stepper, **SMALL)
+        take_steps(one, 3)
         assert same_bits(ens.states()[k], one.states()[0]), k
 
 
@@ -62,12 +62,12 @@ def test_graphed_steps_have_the_bits_of_plain_ones(one_thread, device, layout):
     same ensemble launched step by step, with its graphs kept (in turn, one a member): with the
     scene's ∇⁴ every k steps (``hyperviscosity.every``), a graph of the steps without it and one
     of those that end with it."""
-    states = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **SMALL).states()
-    runs = [Ensemble("galewsky", 2, states, device=device, graphs=g, layout=layout, **SMALL) for g in ("off", "on")]
+    states = members_run("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **SMALL).states()
+    runs = [members_run("galewsky", 2, states, device=device, graphs=g, layout=layout, **SMALL) for g in ("off", "on")]
     every = load_scene("galewsky", ne=2, np_=4, dt=900.0).hypervis_every
     assert 1 < every <= 5  # both kinds of step in the five
     for ens in runs:
-        ens.step(5)
+        take_steps(ens, 5)
     assert (runs[0].graphs_kept, runs[1].graphs_kept) == (0, 2 if layout == "shared" else 4)
     assert same_bits(runs[0].states(), runs[1].states())
 
@@ -98,7 +98,7 @@ def test_the_member_grid_offsets_each_member():
 )
 def test_bad_input_names_the_argument(members, initial, named):
     with pytest.raises(ArgumentError, match=named):
-        Ensemble("galewsky", members, initial, device="cpu", **SMALL)
+        members_run("galewsky", members, initial, device="cpu", **SMALL)
 
 
 def test_a_bad_perturbation_and_scene_are_refused():
@@ -107,7 +107,7 @@ def test_a_bad_perturbation_and_scene_are_refused():
     with pytest.raises(ArgumentError, match="seed"):
         Perturbation(1.0, seed=0.5)
     with pytest.raises(ArgumentError, match=r"scene: its dt is controlled .* not each on a model of its own$"):
-        Ensemble("galewsky", 2, device="cpu", stepper="bs32", layout="in_turn", **SMALL, **{"time.control": "error"})
+        members_run("galewsky", 2, device="cpu", stepper="bs32", layout="in_turn", **SMALL, **{"time.control": "error"})
 
 
 def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():
@@ -137,12 +137,12 @@ def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():
 
 
 def test_a_blow_up_names_the_member():
-    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    good = members_run("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
     good[2, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps
-    ens = Ensemble("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0)
+    ens = members_run("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0)
     with pytest.raises(BlowUp, match=r"^member 2 of 3 blew up at step \d+ .*policy: stop all"):
-        ens.step(200)
-    assert ens.step_count > 1  # the block re-run step by step to name the step
+        take_steps(ens, 200)
+    assert ens.step > 1  # the block re-run step by step to name the step
     assert np.isfinite(ens.states()[:2]).all()
 
 
@@ -155,8 +155,8 @@ def test_variants_have_the_bits_of_their_own_scenes_single_runs():
     from swe_sphere.ensemble import Variants
 
     values = {"case.hhat": [60.0, 180.0], "case.lon2": [1.0, -2.0], "planet.omega": [6e-5, 8e-5]}
-    ens = Ensemble("galewsky", 2, Variants(values), device="cpu", **SMALL)
-    ens.step(4)
+    ens = members_run("galewsky", 2, Variants(values), device="cpu", **SMALL)
+    take_steps(ens, 4)
     base = load_scene("galewsky", ne=2, np_=4, dt=900.0)
     for k in range(2):
         scene = dataclasses.replace(
@@ -168,7 +168,7 @@ def test_variants_have_the_bits_of_their_own_scenes_single_runs():
         sim.advance(4 * SMALL["dt"] / 86400)
         assert same_bits(ens.states()[k], sim.x.numpy()), k
         invariants = ens.invariants()[k]
-        assert invariants == {key: sim.diagnostics.diagnose(sim.time)[key] for key in invariants}
+        assert invariants == {key: sim.members.diagnose(sim.time)[key] for key in invariants}
     assert not same_bits(ens.states()[0], ens.states()[1])
 
 
@@ -188,7 +188,7 @@ def test_variants_refuse_what_members_cannot_take_apart(values, says):
     from swe_sphere.ensemble import Variants
 
     with pytest.raises(ArgumentError, match=says):
-        Ensemble("galewsky", 2, Variants(values), device="cpu", **SMALL)
+        members_run("galewsky", 2, Variants(values), device="cpu", **SMALL)
 
 
 def test_galewsky_s_own_values_keep_their_bits_and_reference():

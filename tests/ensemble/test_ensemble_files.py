@@ -15,10 +15,10 @@ import pytest
 
 import swe_sphere
 from swe_sphere.core.errors import BlowUp, CheckpointError, Interrupted, OutputError, SceneError
-from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.ensemble import Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import cli_main, digest, write_tc2_scene
+from helpers import cli_main, digest, members_from_checkpoint, members_run, take_steps, write_tc2_scene
 
 SMALL = {"ne": 2, "np": 4, "dt": 900.0, "days": 0.5, "output.every_days": 0.25}
 
@@ -29,7 +29,7 @@ def read(path, *names):
 
 
 def test_each_member_in_the_file_is_its_single_run_s(tmp_path):
-    ens = Ensemble("galewsky", 3, Perturbation(2.0, seed=5), device="cpu", **SMALL)
+    ens = members_run("galewsky", 3, Perturbation(2.0, seed=5), device="cpu", **SMALL)
     starts = ens.states()
     ens.run(tmp_path / "ens.nc")
     time, h, u, zeta, mass = read(tmp_path / "ens.nc", "time", "h", "u", "vorticity", "mass")
@@ -45,8 +45,8 @@ def test_each_member_in_the_file_is_its_single_run_s(tmp_path):
 def test_each_member_s_errors_are_its_single_run_s(tmp_path):
     """TC2's exact solution: Williamson's norms of every member, as its single run's file has them."""
     kw = {**SMALL, "dt": 1800.0}
-    starts = Ensemble("tc2_steady", 2, Perturbation(1.0, seed=2), device="cpu", **kw).states()
-    Ensemble("tc2_steady", 2, starts, device="cpu", **kw).run(tmp_path / "ens.nc")
+    starts = members_run("tc2_steady", 2, Perturbation(1.0, seed=2), device="cpu", **kw).states()
+    members_run("tc2_steady", 2, starts, device="cpu", **kw).run(tmp_path / "ens.nc")
     names = ("l1_h", "l2_h", "linf_h", "l2_wind", "l2_vorticity", "l2_divergence")
     errors = read(tmp_path / "ens.nc", *names)
     assert errors[1][0, 0] > 1e-4  # 1 m of noise against the exact h
@@ -57,7 +57,7 @@ def test_each_member_s_errors_are_its_single_run_s(tmp_path):
 
 
 def test_the_mean_and_spread_are_the_members(tmp_path):
-    ens = Ensemble("galewsky", 4, Perturbation(3.0, seed=1), device="cpu", **SMALL)
+    ens = members_run("galewsky", 4, Perturbation(3.0, seed=1), device="cpu", **SMALL)
     ens.run(tmp_path / "ens.nc")
     h, mean, spread, rms, area = read(tmp_path / "ens.nc", "h", "h_mean", "h_spread", "h_spread_rms", "area")
     assert np.array_equal(mean, h.mean(axis=1)) and np.array_equal(spread, h.std(axis=1, ddof=1))
@@ -83,7 +83,7 @@ def test_an_ensemble_writes_its_streams_as_a_run_does(tmp_path):
     has too, the stream's values are the run file's, and each member's stream the bits of its
     single run's stream."""
     kw = {**SMALL, "output.streams": STREAMS}
-    ens = Ensemble("galewsky", 2, Perturbation(2.0, seed=5), device="cpu", **kw)
+    ens = members_run("galewsky", 2, Perturbation(2.0, seed=5), device="cpu", **kw)
     starts = ens.states()
     ens.run(tmp_path / "ens.nc")
     time, h, u, zeta, mass = read(tmp_path / "ens.nc", "time", "h", "u", "vorticity", "mass")
@@ -107,7 +107,7 @@ def test_a_controlled_ensemble_lands_on_its_streams_days(tmp_path, one_thread):
     """Under step control the steps land on each stream's days too, as a run's do."""
     controlled = {"ne": 2, "np": 4, "days": 0.25, "stepper": "bs32", "time.control": "error"}
     kw = {**controlled, "output.every_days": 0.25, "output.streams": STREAMS[:1]}
-    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **kw)
+    ens = members_run("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **kw)
     ens.run(tmp_path / "ens.nc")
     time, h = read(tmp_path / "ens.nc", "time", "h")
     t3, h3 = read(tmp_path / "ens.3h.nc", "time", "h")
@@ -120,12 +120,12 @@ def test_a_signal_writes_the_step_reached_to_every_stream(tmp_path):
     """Stopped by a signal, the run file and each stream end with the step reached, their
     global attributes saying so."""
     kw = {**SMALL, "output.streams": STREAMS}
-    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **kw)
+    ens = members_run("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **kw)
     signalled = []
 
     def signal_at_10(ens):  # SIGINT once 10 steps are done: the ensemble stops at the block's end (10)
-        if ens.step_count >= 10 and not signalled:
-            signalled.append(ens.step_count)
+        if ens.step >= 10 and not signalled:
+            signalled.append(ens.step)
             os.kill(os.getpid(), signal.SIGINT)
 
     ens.add_callback(signal_at_10, every_steps=5)
@@ -157,27 +157,27 @@ def test_the_command_line_runs_an_ensemble_with_its_streams(capsys, tmp_path):
 
 
 def test_a_blow_up_keeps_the_good_output_times(tmp_path):
-    good = Ensemble("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
+    good = members_run("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
     good[2, :2] *= 8  # unstable at this dt within a few steps (test_ensemble)
-    ens = Ensemble("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0, days=5)
+    ens = members_run("tc2_steady", 3, good, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0, days=5)
     with pytest.raises(BlowUp, match="member 2 of 3"):
         ens.run(tmp_path / "ens.nc")
     with netCDF4.Dataset(tmp_path / "ens.nc") as ds:
         assert "member 2 of 3 blew up" in ds.stopped
         times = ds["time"][:]
-        assert len(times) >= 1 and times[-1] * 86400 < ens.step_count * 1800.0
+        assert len(times) >= 1 and times[-1] * 86400 < ens.step * 1800.0
         assert np.isfinite(ds["h"][:]).all()
 
 
 @pytest.mark.parametrize("stepper", ["kgu35", "leapfrog"])  # leapfrog: a stepper history carried over
 def test_a_restart_file_continues_bitwise(tmp_path, stepper):
     kw = {**SMALL, "stepper": stepper}
-    whole = Ensemble("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **{**kw, "days": 0.75})
+    whole = members_run("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **{**kw, "days": 0.75})
     whole.run(tmp_path / "whole.nc")
-    first = Ensemble("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **kw)
+    first = members_run("galewsky", 2, Perturbation(2.0, seed=2), device="cpu", **kw)
     first.run(tmp_path / "first.nc", restart_every=0.25)
-    rest = Ensemble.from_checkpoint(tmp_path / "first.restart.nc", days=0.75)
-    assert rest.step_count == 48 and rest.initial == first.initial
+    rest = members_from_checkpoint(tmp_path / "first.restart.nc", days=0.75)
+    assert rest.step == 48 and rest.members.initial_states == first.members.initial_states
     rest.run(tmp_path / "rest.nc")
     assert np.array_equal(rest.states(), whole.states())
     (h_whole,), (h_rest, t_rest) = (
@@ -189,12 +189,12 @@ def test_a_restart_file_continues_bitwise(tmp_path, stepper):
 
 
 def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path):
-    ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
+    ens = members_run("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
     signalled = []
 
     def signal_at_30(ens):  # SIGINT once 30 steps are done: as a run, the ensemble stops at the block's end (30)
-        if ens.step_count >= 30 and not signalled:
-            signalled.append(ens.step_count)
+        if ens.step >= 30 and not signalled:
+            signalled.append(ens.step)
             os.kill(os.getpid(), signal.SIGINT)
 
     ens.add_callback(signal_at_30, every_steps=6)
@@ -207,25 +207,25 @@ def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path):
         assert list(ds["time"][:]) == [0.0, 0.25, 0.3125] and "stopped" not in ds.ncattrs()
         assert (ds.interrupted, ds.interrupted_at_step, ds.interrupted_at_day) == ("SIGINT", 30, 0.3125)  # as a run's
     assert signalled == [30]
-    rest = Ensemble.from_checkpoint(tmp_path / "e.restart.nc")
-    rest.step(96 - 30)
-    whole = Ensemble("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
-    whole.step(96)
+    rest = members_from_checkpoint(tmp_path / "e.restart.nc")
+    take_steps(rest, 96 - 30)
+    whole = members_run("galewsky", 2, Perturbation(1.0, seed=3), device="cpu", **{**SMALL, "days": 1.0})
+    take_steps(whole, 96)
     assert np.array_equal(rest.states(), whole.states())
 
 
 def test_a_restart_file_is_continued_by_its_own_kind(tmp_path):
-    ens = Ensemble("galewsky", 2, device="cpu", **SMALL)
-    ens.step(4)
+    ens = members_run("galewsky", 2, device="cpu", **SMALL)
+    take_steps(ens, 4)
     ens.write_checkpoint(tmp_path / "e.restart.nc")
     with pytest.raises(CheckpointError, match="an ensemble's restart file \\(2 members\\)"):
         Simulation.from_checkpoint(tmp_path / "e.restart.nc", "cpu")
     sim = Simulation("galewsky", "cpu", progress=False, **SMALL)
     sim.write_checkpoint(tmp_path / "s.restart.nc")
     with pytest.raises(CheckpointError, match="a single run's restart file"):
-        Ensemble.from_checkpoint(tmp_path / "s.restart.nc")
+        members_from_checkpoint(tmp_path / "s.restart.nc")
     with pytest.raises(CheckpointError, match="ends before the checkpoint"):
-        Ensemble.from_checkpoint(tmp_path / "e.restart.nc", days=0.03125)
+        members_from_checkpoint(tmp_path / "e.restart.nc", days=0.03125)
 
 
 def test_the_command_line_runs_an_ensemble(capsys, tmp_path):
@@ -298,7 +298,7 @@ def test_plot_and_remap_read_a_member_the_mean_or_the_spread(capsys, tmp_path):
     from swe_sphere.studies.plotting import open_run, plot_map
 
     run = tmp_path / "e.nc"
-    Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **SMALL).run(run)
+    members_run("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **SMALL).run(run)
     code, _, err = cli_main(capsys, "plot", run, "--output", tmp_path / "p")
     assert code == 2 and "an ensemble's run file (2 members): name --member K (0 to 1), mean or spread" in err
     assert not (tmp_path / "p").exists()
@@ -344,11 +344,13 @@ def test_members_start_from_an_ensemble_s_run_file(capsys, tmp_path):
     from swe_sphere.core.errors import ArgumentError
     from swe_sphere.ensemble import MemberFile
 
-    first = Ensemble("galewsky", 2, Perturbation(1.0, seed=6), device="cpu", **SMALL)
+    first = members_run("galewsky", 2, Perturbation(1.0, seed=6), device="cpu", **SMALL)
     first.run(tmp_path / "e.nc")
-    again = Ensemble("galewsky", 2, MemberFile(tmp_path / "e.nc"), device="cpu", **SMALL)
-    assert np.array_equal(again.states(), first.states()) and again.initial == f"from {tmp_path / 'e.nc'}"
-    at = Ensemble("galewsky", 2, MemberFile(tmp_path / "e.nc", day=0.25), device="cpu", **SMALL)
+    again = members_run("galewsky", 2, MemberFile(tmp_path / "e.nc"), device="cpu", **SMALL)
+    assert (
+        np.array_equal(again.states(), first.states()) and again.members.initial_states == f"from {tmp_path / 'e.nc'}"
+    )
+    at = members_run("galewsky", 2, MemberFile(tmp_path / "e.nc", day=0.25), device="cpu", **SMALL)
     assert not np.array_equal(at.states(), first.states())
     Simulation("galewsky", "cpu", progress=False, **SMALL).run(tmp_path / "one.nc")
     for members, initial, says in [
@@ -358,7 +360,7 @@ def test_members_start_from_an_ensemble_s_run_file(capsys, tmp_path):
         (2, MemberFile(tmp_path / "e.nc", day=0.3), "no output at day 0.3"),
     ]:
         with pytest.raises(ArgumentError, match=says):
-            Ensemble("galewsky", members, initial, device="cpu", **SMALL)
+            members_run("galewsky", members, initial, device="cpu", **SMALL)
     run = ("run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.25")
     code, _, err = cli_main(
         capsys, *run, "--members", "3", "--initial", tmp_path / "e.nc", "--output", tmp_path / "x.nc"
@@ -402,10 +404,10 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
     assert cli_main(capsys, *run, *flags, "--output", tmp_path / "b.nc")[0] == 0
     (a,), (b,) = read(tmp_path / "a.nc", "h"), read(tmp_path / "b.nc", "h")
     assert a.shape[1] == 2 and np.array_equal(a, b)
-    ens = Ensemble(
+    ens = members_run(
         "galewsky", initial=None, device="cpu", **SMALL, **{"ensemble.members": 2, "ensemble.perturbation": 1.5}
     )
-    assert ens.members == 2 and ens.initial == "perturbed: h + 1.5 m white noise, seed 0"
+    assert len(ens.members) == 2 and ens.members.initial_states == "perturbed: h + 1.5 m white noise, seed 0"
     band = ("-s", "ensemble.members=2", "-s", "ensemble.perturbation=1.5", "-s", "ensemble.degrees=[2, 6]")
     assert cli_main(capsys, *run, *band, "--output", tmp_path / "d.nc")[0] == 0
     degrees = ("--members", "2", "--perturbation", "1.5", "--perturbation-degrees", "2,6")
@@ -434,7 +436,7 @@ def test_a_run_refuses_what_would_replace_its_inputs_or_its_own_names(tmp_path):
     run's own name is refused; an argument of another kind is named; nothing is written."""
     scene = write_tc2_scene(tmp_path / "tc2.toml", days=0.5)
     before = digest(scene)
-    ens = Ensemble(scene, 2, device="cpu", ne=2)
+    ens = members_run(scene, 2, device="cpu", ne=2)
     with pytest.raises(OutputError, match=r"^the output .*tc2.toml is the input .*tc2.toml; writing it would"):
         ens.run(scene, overwrite=True)
     assert digest(scene) == before
@@ -445,4 +447,4 @@ def test_a_run_refuses_what_would_replace_its_inputs_or_its_own_names(tmp_path):
     del ens.activities["checkpointer"]
     with pytest.raises(SceneError, match=r"^compress must be"):
         ens.run(tmp_path / "ens.nc", compress="yes")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["tc2.toml"] and ens.step_count == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tc2.toml"] and ens.step == 0

@@ -11,12 +11,11 @@ import pytest
 
 import swe_sphere
 from swe_sphere.core.errors import ArgumentError
-from swe_sphere.ensemble import Ensemble
 from swe_sphere.io.run_file import member_statistics
 from swe_sphere.members.initial import MemberFile, MembersAlike, Perturbation, Variants
 from swe_sphere.simulation.simulation import Simulation
 
-from helpers import TINY, cli_main, one_line
+from helpers import TINY, cli_main, members_run, one_line
 
 TINY_PY = {"ne": 2, "np": 4, "device": "cpu", "progress": False}
 BAND = (
@@ -33,7 +32,7 @@ def _in_tmp(tmp_path, monkeypatch):
     "build, words",
     [
         (  # the issue's: accepted, its noise aliased onto the 24 degrees the ne4 grid holds
-            lambda: Ensemble("tc2_steady", 2, Perturbation(1.0, degrees=(1, 2000)), ne=4, device="cpu"),
+            lambda: members_run("tc2_steady", 2, Perturbation(1.0, degrees=(1, 2000)), ne=4, device="cpu"),
             "initial: perturbation degrees 1,2000: the ne=4 np=4 " + BAND.format(top=24),
         ),
         (
@@ -49,8 +48,7 @@ def _in_tmp(tmp_path, monkeypatch):
     ],
 )
 def test_a_band_past_the_grid_is_refused_from_python(build, words):
-    with pytest.raises(ArgumentError) as err, warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # Ensemble, the old name
+    with pytest.raises(ArgumentError) as err:
         build()
     assert str(err.value) == words
 
@@ -59,7 +57,7 @@ def test_a_band_the_grid_resolves_runs():
     """l_max = 2 ne (np - 1) = 12 on ne2 np4, the largest the command line takes too."""
     sim = Simulation("tc2_steady", members=2, initial=Perturbation(1.0, degrees=(12, 12)), **TINY_PY)
     h = sim.states()[:, 2]
-    assert sim.ensemble.initial_states.endswith("degrees 12 to 12, seed 0") and np.ptp(h, axis=0).max() > 0.1
+    assert sim.members.initial_states.endswith("degrees 12 to 12, seed 0") and np.ptp(h, axis=0).max() > 0.1
 
 
 def test_the_command_line_s_band_and_python_s_are_one_check(capsys):

@@ -36,7 +36,7 @@ def _run(sim, control, t, target):
 
 
 def _l2_h(sim, t):
-    return sim.diagnostics.diagnose(t)["l2_h"]
+    return sim.members.diagnose(t)["l2_h"]
 
 
 def test_the_error_falls_with_rtol_and_the_run_ends_at_its_day():

@@ -83,7 +83,7 @@ def test_one_driver_for_one_member_and_many():
     many.advance(4 * 900 / 86400)
     one = Simulation("galewsky", "cpu", start=starts[1], progress=False, **SMALL)
     one.advance(4 * 900 / 86400)
-    assert many.step == one.step == 4 and seen == [2, 4] and many.members == 2 and one.members == 1
+    assert many.step == one.step == 4 and seen == [2, 4] and len(many.members) == 2 and len(one.members) == 1
     assert np.array_equal(many.states()[1], one.states()[0])
     with pytest.warns(DeprecationWarning, match=r"^swe_sphere.Ensemble is deprecated"):
         ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **SMALL)
@@ -92,8 +92,10 @@ def test_one_driver_for_one_member_and_many():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert isinstance(ens, Simulation) and ens.time == 0.0 and ens.states().shape == starts.shape
-    with pytest.raises(ArgumentError, match=r"^set_states: a run of members"):
-        one.set_states(starts)
+    with pytest.raises(ArgumentError, match=r"^states must have shape \(1, 3, 384\) \(got \(2, 3, 384\)\)$"):
+        one.set_states(starts)  # a single run is one member: (1, 3, n)
+    one.set_states(starts[1:])
+    assert np.array_equal(one.states(), starts[1:])
 
 
 @pytest.mark.parametrize("stepper", ["kgu35", "leapfrog"])
@@ -129,5 +131,5 @@ def test_a_dropped_members_invariants_and_errors_are_nan_as_its_state():
     assert all(np.isnan(v) for v in (*invariants[1].values(), *errors[1].values())) and errors[1]
     one = Simulation("tc2_steady", "cpu", start=bad[2], **kw)
     one.run()
-    mass = one.diagnostics.diagnose(one.scene.days * 86400.0)["mass"]
+    mass = one.members.diagnose(one.scene.days * 86400.0)["mass"]
     assert invariants[2]["mass"] == mass and np.isfinite([*invariants[0].values(), *errors[0].values()]).all()

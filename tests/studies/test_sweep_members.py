@@ -12,11 +12,11 @@ import pytest
 
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
-from swe_sphere.ensemble import Ensemble, MemberFile, Perturbation
+from swe_sphere.ensemble import MemberFile, Perturbation
 from swe_sphere.studies.sweep import Members
 from swe_sphere.studies.sweep.members import FIGURES
 
-from helpers import cli_main, png_size, without_sweep_figures
+from helpers import cli_main, members_run, png_size, without_sweep_figures
 
 pytestmark = pytest.mark.xdist_group("sweep_members")  # one module fixture, one worker
 
@@ -52,11 +52,11 @@ def test_member_k_starts_where_an_ensemble_s_member_k_does(swept):
     """The starts (``Members.starts``) are an ensemble's members' (``Perturbation``), bit for bit;
     the members' sweeps differ run by run."""
     scene = load_scene("tc2_steady", ne=2)
-    ensemble = Ensemble("tc2_steady", 2, Perturbation(1.0, seed=0), device="cpu", ne=2).states()
+    ensemble = members_run("tc2_steady", 2, Perturbation(1.0, seed=0), device="cpu", ne=2).states()
     assert np.array_equal(Members(2, Perturbation(1.0, 0)).starts({"kgu35": scene}), ensemble)
     assert "degrees" not in Members(2, Perturbation(1.0, 0)).key(0, ensemble[0])  # white noise's keys as before
     band = Members(2, Perturbation(1.0, 0, (1, 4)))
-    in_band = Ensemble("tc2_steady", 2, Perturbation(1.0, 0, (1, 4)), device="cpu", ne=2).states()
+    in_band = members_run("tc2_steady", 2, Perturbation(1.0, 0, (1, 4)), device="cpu", ne=2).states()
     assert np.array_equal(band.starts({"kgu35": scene}), in_band) and band.key(1, in_band[1])["degrees"] == [1, 4]
     first, second = (pd.read_csv(swept / f"member{k}" / "sweep.csv") for k in range(2))
     assert (first["total_error"] != second["total_error"]).all()
@@ -126,7 +126,7 @@ def test_members_from_an_ensemble_s_file_start_where_its_members_are(tmp_path, c
     )
     scene = load_scene("tc2_steady", ne=2)
     starts = Members(2, MemberFile(ens)).starts({"kgu35": scene})
-    states = Ensemble("tc2_steady", 2, MemberFile(ens), device="cpu", ne=2).states()
+    states = members_run("tc2_steady", 2, MemberFile(ens), device="cpu", ne=2).states()
     assert np.array_equal(starts, states) and not np.array_equal(starts[0], starts[1])
     out = tmp_path / "s"
     code, text, _ = cli_main(

@@ -97,3 +97,63 @@ def test_the_card_s_items_run_on_the_cpu_at_tiny_size(tmp_path):
         assert {"card/precision_members.json", "card/session.log"} <= set(bundle.getnames())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["card.json", "card.md", "card.tgz", "session.log"]
     assert written(BENCHMARKS / "results") == results
+
+
+def _tables():
+    """benchmarks/tables.py as a module (benchmarks/ is no package: its scripts run as files)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("benchmark_tables", BENCHMARKS / "tables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_readme_is_generated_from_the_results_unchanged():
+    """benchmarks/README.md is what ``python benchmarks/tables.py`` writes from the results: an
+    edit by hand, or a results file added without regenerating, shows here."""
+    assert _tables().page() == (BENCHMARKS / "README.md").read_text(), "python benchmarks/tables.py"
+
+
+def test_the_rooms_keep_the_suite_s_rules():
+    """Issue 126's targets: at most 12 files directly in a folder of scripts, a script's name once
+    across the rooms (the scripts import one another by it), every results folder named after a script,
+    no script over 600 lines nor a function over 80 code lines (comments, docstrings and blank
+    lines left out), and no deprecated ``Ensemble``."""
+    import ast
+
+    folders = [BENCHMARKS, *(p for p in BENCHMARKS.rglob("*") if p.is_dir() and "results" not in p.parts)]
+    crowded = {str(f): n for f in folders if (n := sum(p.is_file() for p in f.iterdir())) > 12}
+    assert not crowded, crowded
+    scripts = [p for p in BENCHMARKS.rglob("*") if p.suffix in (".py", ".sh") and "results" not in p.parts]
+    modules = [p.stem for p in scripts if p.suffix == ".py"]  # (gpu_session.sh drives gpu_session.py)
+    assert len(modules) == len(set(modules)), sorted(s for s in modules if modules.count(s) > 1)
+    stems = {p.stem for p in scripts}
+    gallery = BENCHMARKS.parent / "docs" / "examples"  # the application scripts' place now, as plot_<name>.py
+    elsewhere = {p.stem.removeprefix("plot_") for p in gallery.glob("plot_*.py")}
+    orphans = {p.name for p in (BENCHMARKS / "results").iterdir()} - stems - elsewhere
+    assert not orphans, orphans
+    long, ensembles = {}, []
+    for path in (p for p in scripts if p.suffix == ".py"):
+        text = path.read_text()
+        lines, tree = text.splitlines(), ast.parse(text)
+        if len(lines) > 600:
+            long[path.name] = len(lines)
+        docs = {
+            n
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef) and ast.get_docstring(node)
+            for n in range(node.body[0].lineno, node.body[0].end_lineno + 1)
+        }
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef):
+                code = [
+                    n
+                    for n in range(node.lineno, node.end_lineno + 1)
+                    if n not in docs and lines[n - 1].strip() and not lines[n - 1].strip().startswith("#")
+                ]
+                if len(code) > 80:
+                    long[f"{path.name}:{node.name}"] = len(code)
+        ensembles += [path.name for node in ast.walk(tree) if isinstance(node, ast.Name) and node.id == "Ensemble"]
+    assert not long, long
+    assert not ensembles, ensembles

@@ -134,6 +134,50 @@ def points(ne):
     return 6 * ne * ne * 16
 
 
+def predict(counts, name, ne, bw):
+    """(GPU time, launch floor, step without graphs, step with graphs) in s of ``name`` (a key of
+    ``counts``: the RHS, the ∇⁴ or a stepper) at ``ne`` np 4 on a card of ``bw`` B/s."""
+    L, bpp, syncs, _, _ = counts[name]
+    gpu = bpp * points(ne) / (EFFICIENCY * bw) + L * KERNEL_GAP_S
+    floor = L * LAUNCH_S
+    return gpu, floor, max(gpu, floor), gpu + (syncs + 1) * LAUNCH_S
+
+
+def predictions(args, counts, names) -> None:
+    """Print each card's predicted µs of ``names`` and TC5's simulated days a wall day."""
+    print(
+        f"\n## Predicted µs at {EFFICIENCY:.0%} of HBM: GPU time / launch floor ({LAUNCH_S * 1e6:g} µs a launch) / "
+        "with one CUDA graph per sync-free segment; **bold**: launch-bound without graphs\n"
+    )
+    for gpu_name, bw in HBM.items():
+        print(f"**{gpu_name} ({bw / 1e12:.2f} TB/s)**\n")
+        print("| what | " + " | ".join(f"ne{ne} ({points(ne) / 1e6:.2f} M pts)" for ne in args.at) + " |")
+        print("|---|" + "---:|" * len(args.at))
+        for name in names:
+            cells = []
+            for ne in args.at:
+                gpu, floor, _, graph = predict(counts, name, ne, bw)
+                cell = f"{gpu * 1e6:.0f} / {floor * 1e6:.0f} / {graph * 1e6:.0f}"
+                cells.append(f"**{cell}**" if floor > gpu else cell)
+            print(f"| {name} | " + " | ".join(cells) + " |")
+        print()
+        print(
+            "Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
+            f"{args.implicit_dt_factor:g}× it), without / with graphs:\n"
+        )
+        dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np_=4).dt for ne in args.at}
+        print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
+        print("|---|" + "---:|" * len(args.at))
+        for name in STEPPERS:
+            cells = []
+            for ne in args.at:
+                dt = dts[ne] * (args.implicit_dt_factor if name in IMPLICIT else 1.0)
+                _, _, plain, graph = predict(counts, name, ne, bw)
+                cells.append(f"{dt / plain:,.0f} / {dt / graph:,.0f}")
+            print(f"| {name} | " + " | ".join(cells) + " |")
+        print()
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--ne", type=int, default=8, help="grid the counts are taken on (np 4)")
@@ -191,44 +235,7 @@ def main(argv=None):
         L, bpp, syncs, _, _ = counts[name]
         print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")
 
-    def predict(name, ne, bw):
-        """(GPU time, launch floor, step without graphs, step with graphs) in s."""
-        L, bpp, syncs, _, _ = counts[name]
-        gpu = bpp * points(ne) / (EFFICIENCY * bw) + L * KERNEL_GAP_S
-        floor = L * LAUNCH_S
-        return gpu, floor, max(gpu, floor), gpu + (syncs + 1) * LAUNCH_S
-
-    print(
-        f"\n## Predicted µs at {EFFICIENCY:.0%} of HBM: GPU time / launch floor ({LAUNCH_S * 1e6:g} µs a launch) / "
-        "with one CUDA graph per sync-free segment; **bold**: launch-bound without graphs\n"
-    )
-    for gpu_name, bw in HBM.items():
-        print(f"**{gpu_name} ({bw / 1e12:.2f} TB/s)**\n")
-        print("| what | " + " | ".join(f"ne{ne} ({points(ne) / 1e6:.2f} M pts)" for ne in args.at) + " |")
-        print("|---|" + "---:|" * len(args.at))
-        for name in names:
-            cells = []
-            for ne in args.at:
-                gpu, floor, _, graph = predict(name, ne, bw)
-                cell = f"{gpu * 1e6:.0f} / {floor * 1e6:.0f} / {graph * 1e6:.0f}"
-                cells.append(f"**{cell}**" if floor > gpu else cell)
-            print(f"| {name} | " + " | ".join(cells) + " |")
-        print()
-        print(
-            "Simulated days per wall day for TC5 (the scene's Δt at each ne; semi_implicit, implicit, imex at "
-            f"{args.implicit_dt_factor:g}× it), without / with graphs:\n"
-        )
-        dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np_=4).dt for ne in args.at}
-        print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
-        print("|---|" + "---:|" * len(args.at))
-        for name in STEPPERS:
-            cells = []
-            for ne in args.at:
-                dt = dts[ne] * (args.implicit_dt_factor if name in IMPLICIT else 1.0)
-                _, _, plain, graph = predict(name, ne, bw)
-                cells.append(f"{dt / plain:,.0f} / {dt / graph:,.0f}")
-            print(f"| {name} | " + " | ".join(cells) + " |")
-        print()
+    predictions(args, counts, names)
 
 
 if __name__ == "__main__":

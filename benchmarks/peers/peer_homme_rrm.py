@@ -311,29 +311,11 @@ def gradient_error(grid, a: float = HOMME_RADIUS) -> float:
     return math.sqrt(np.sum(grid.spheremp * (east**2 + (north - exact) ** 2)) / np.sum(grid.spheremp * exact**2))
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rounds", type=int, default=5, help="timed rounds, each 1 and N days of both (default 5)")
-    ap.add_argument("--days", type=int, default=4, help="N, the longer timed run in days (default 4)")
-    ap.add_argument("--mesh", type=Path, help="HOMME's mountain_10_x2.g (default: shared/meshes beside the kit)")
-    ap.add_argument("--no-np", dest="np_study", action="store_false", help="skip the convergence in np")
-    add_homme_options(ap)
-    args = ap.parse_args(argv)
-    if args.rounds < 1 or args.days < 2:
-        ap.error("--rounds must be at least 1 and --days at least 2")
-    mesh = args.mesh or default_kit().parents[1] / "meshes" / "mountain_10_x2.g"
-    try:
-        if not mesh.is_file():
-            raise Skip(f"no {mesh} (--mesh)")
-        base = kit_namelist(args.kit)
-        sweqx = find_sweqx(args)
-    except Skip as why:
-        print(f"peer_homme_rrm: skipped: {why}")
-        # exit 0 and no results file: `recorded` writes none on an exception, so the last one stays
-        raise SystemExit(0) from None
-    hv = homme_settings(base)
-    mountain = Grid.file(mesh.name, mesh.resolve())
-
+def measure(args, base, sweqx, hv, mountain) -> dict:
+    """The runs of both codes: ``--rounds`` timed rounds on ``mountain`` (1 and ``--days`` days, the
+    order alternating), the day-1 scores on every grid, the refined meshes' regions, and (unless
+    ``--no-np``) swe_sphere's convergence in np; a dict of what ``report_cost`` and
+    ``report_errors`` print."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         run_swe(swe_command(tmp, mountain, 4, 0.0125, tmp / "warm.nc", hv))  # fills the kernel cache; not timed
@@ -380,6 +362,20 @@ def main(argv=None) -> int:
                 print(f"{grid.label}: np 3..7 done", file=sys.stderr)
             regression = swe_scores(run_swe(swe_command(tmp, mountain, 8, 1, tmp / "np.nc", hv))[2], hv)
 
+    return {
+        "rows": rows,
+        "daily": daily,
+        "scores": scores,
+        "grids": grids,
+        "split": split,
+        "convergence": convergence if args.np_study else None,
+        "regression": regression if args.np_study else None,
+    }
+
+
+def report_cost(args, sweqx, hv, mountain, runs: dict) -> None:
+    """Print the settings, the rounds' CPU seconds and the daily error of h on ``mountain``."""
+    rows, daily = runs["rows"], runs["daily"]
     print(
         f"TC2 (alpha 0), HOMME's swtc2.nl: leapfrog-trapezoidal dt 90 s, tensor hyperviscosity s = "
         f"{hv['hypervis_scaling']:g}, HOMME nu {hv['nu']:g} (ours: {our_nu(hv['nu'], hv['hypervis_scaling'], mountain.nelem):.4g} "
@@ -412,6 +408,11 @@ def main(argv=None) -> int:
     for day, l1, l2, linf, h in daily:
         print(f"{day:>4g} {l1:>10.4e} {l2:>10.4e} {linf:>10.4e} | {h['l1']:>10.4e} {h['l2']:>10.4e} {h['linf']:>10.4e}")
 
+
+def report_errors(args, mountain, runs: dict) -> None:
+    """Print the day-1 errors on every grid, the regions, the map's share and the np convergence."""
+    scores, grids, split = runs["scores"], runs["grids"], runs["split"]
+    convergence, regression = runs["convergence"], runs["regression"]
     print("\n2. day-1 error of h against TC2's exact solution, np 4, both codes, HOMME's settings")
     eq = scores["ne10 equiangular"]
     el = scores["ne10 element-local"]
@@ -455,6 +456,34 @@ def main(argv=None) -> int:
             f"np 8 on {mountain.label} with HOMME's settings (its regression's configuration): "
             f"l1 {regression['l1']:.3e} l2 {regression['l2']:.3e} linf {regression['linf']:.3e}"
         )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=5, help="timed rounds, each 1 and N days of both (default 5)")
+    ap.add_argument("--days", type=int, default=4, help="N, the longer timed run in days (default 4)")
+    ap.add_argument("--mesh", type=Path, help="HOMME's mountain_10_x2.g (default: shared/meshes beside the kit)")
+    ap.add_argument("--no-np", dest="np_study", action="store_false", help="skip the convergence in np")
+    add_homme_options(ap)
+    args = ap.parse_args(argv)
+    if args.rounds < 1 or args.days < 2:
+        ap.error("--rounds must be at least 1 and --days at least 2")
+    mesh = args.mesh or default_kit().parents[1] / "meshes" / "mountain_10_x2.g"
+    try:
+        if not mesh.is_file():
+            raise Skip(f"no {mesh} (--mesh)")
+        base = kit_namelist(args.kit)
+        sweqx = find_sweqx(args)
+    except Skip as why:
+        print(f"peer_homme_rrm: skipped: {why}")
+        # exit 0 and no results file: `recorded` writes none on an exception, so the last one stays
+        raise SystemExit(0) from None
+    hv = homme_settings(base)
+    mountain = Grid.file(mesh.name, mesh.resolve())
+
+    runs = measure(args, base, sweqx, hv, mountain)
+    report_cost(args, sweqx, hv, mountain, runs)
+    report_errors(args, mountain, runs)
     return 0
 
 

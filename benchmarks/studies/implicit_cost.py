@@ -172,7 +172,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     return sim, timers
 
 
-def main():
+def arguments() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ne", type=int, default=30)
     ap.add_argument("--cases", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
@@ -210,6 +210,100 @@ def main():
         help="the explicit references of every case, e.g. ssprk3@216 (default: EXPLICIT, measured at ne30)",
     )
     args = ap.parse_args()
+    return args
+
+
+def case_runs(args, case: str, dt_g: float, clock) -> list:
+    """The runs of ``case``: each explicit reference, then each configuration in each precision and
+    Krylov backend asked for: (name, Δt/Δt_g, explicit, Simulation, timers)."""
+    runs = []
+    explicit = (
+        EXPLICIT[case] if args.explicit is None else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
+    )
+    for name, dt in explicit:
+        runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
+    for label, stepper, f, options in CONFIGS[case]:
+        if args.steppers and label not in args.steppers:
+            continue
+        krylov_stepper = stepper in ("implicit", "epi2", "epi3")
+        for precision in args.precision if stepper not in ("epi2", "epi3") else [None]:
+            for backend in args.krylov if krylov_stepper else [None]:
+                name = " ".join(
+                    [
+                        label,
+                        *([precision] if precision and len(args.precision) > 1 else []),
+                        *([backend] if backend and len(args.krylov) > 1 else []),
+                    ]
+                )
+                opts = {**options, **({"precision": precision} if precision else {})}
+                runs.append(
+                    (name, f, False, *build(case, args.ne, stepper, f * dt_g, opts, clock, args.device, backend))
+                )
+    return runs
+
+
+def timed_steps(args, runs: list, clock, sync) -> tuple[list, dict]:
+    """Spin every run up, then ``--steps`` rounds: five RHS evaluations (ms each) and one step of
+    each run with its parts (ms): (the RHS's ms per round, each run's (ms, parts, stats) per round)."""
+    for _, _, _, sim, _timers in runs:
+        for _ in range(math.ceil(args.spinup * 3600.0 / sim.scene.dt - 1e-9) + args.warmup):
+            sim.stepper.step(sim.x)
+    rhs_sim, out = runs[0][3], wp.zeros_like(runs[0][3].x)
+    rhs_ms, per_step = [], {i: [] for i in range(len(runs))}
+    for _ in range(args.steps):
+        sync()
+        t0 = clock()
+        for _ in range(5):
+            rhs_sim.model.rhs.__wrapped__(rhs_sim.x, out)  # untimed by the parts
+        sync()
+        rhs_ms.append((clock() - t0) / 5 * 1e3)
+        for i, (_, _, _, sim, timers) in enumerate(runs):
+            timers.reset()
+            sync()
+            t0 = clock()
+            st = sim.stepper.step(sim.x)
+            sync()
+            total = (clock() - t0) * 1e3
+            parts = {k: v * 1e3 for k, v in timers.total.items()}
+            parts["other"] = total - sum(v for k, v in parts.items() if k != "other")
+            per_step[i].append((total, parts, st))
+    return rhs_ms, per_step
+
+
+def report(args, case: str, dt_g: float, runs: list, rhs_ms: list, per_step: dict) -> None:
+    """Print ``case``'s table: each run's step, its parts in RHS-equivalents, its cost a day."""
+    rhs = statistics.median(rhs_ms)
+    cost = {i: statistics.median(s[0] for s in per_step[i]) / runs[i][3].scene.dt for i in per_step}
+    best = min((i for i in cost if runs[i][2]), key=cost.get)
+    print(
+        f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.spinup:g} h and {args.warmup} more; "
+        f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s"
+    )
+    print(
+        "| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | "
+        + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS)
+        + " | RHS-eq/step | RHS-eq per Krylov vector | cost/day vs best explicit |"
+    )
+    print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|---:|")
+    for i, (label, f, _, sim, _) in enumerate(runs):
+        steps = per_step[i]
+        ms = statistics.median(s[0] for s in steps)
+        parts = {p: statistics.median(s[1][p] for s in steps) for p in PARTS}
+        its = {
+            k: statistics.mean(s[2].iterations.get(k, 0) for s in steps)
+            for k in ("newton", "gmres", "helmholtz", "krylov")
+        }
+        per_vector = f"{ms / rhs / its['krylov']:.2f}" if its["krylov"] else "-"
+        its_text = ", ".join(f"{k} {v:.1f}" for k, v in its.items() if v) or "-"
+        print(
+            f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
+            + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
+            + f" | {ms / rhs:.1f} | {per_vector} | {cost[i] / cost[best]:.2f} |"
+        )
+
+
+def main():
+    args = arguments()
     clock = time.process_time if args.clock == "cpu" and args.device == "cpu" else time.perf_counter
     sync = lambda: wp.synchronize_device(args.device)  # noqa: E731
     threadpool_limits(1)  # as Simulation.run: BLAS threads would fight the model's
@@ -220,81 +314,9 @@ def main():
     for case in args.cases:
         probe = Simulation(scene(case, args.ne, "ssprk3", 60.0, {}), args.device, progress=False)
         dt_g = 60.0 / probe.courant()["courant_gravity"]
-        runs = []
-        explicit = (
-            EXPLICIT[case]
-            if args.explicit is None
-            else [(e.split("@")[0], float(e.split("@")[1])) for e in args.explicit]
-        )
-        for name, dt in explicit:
-            runs.append((name, dt / dt_g, True, *build(case, args.ne, name, dt, {}, clock, args.device)))
-        for label, stepper, f, options in CONFIGS[case]:
-            if args.steppers and label not in args.steppers:
-                continue
-            krylov_stepper = stepper in ("implicit", "epi2", "epi3")
-            for precision in args.precision if stepper not in ("epi2", "epi3") else [None]:
-                for backend in args.krylov if krylov_stepper else [None]:
-                    name = " ".join(
-                        [
-                            label,
-                            *([precision] if precision and len(args.precision) > 1 else []),
-                            *([backend] if backend and len(args.krylov) > 1 else []),
-                        ]
-                    )
-                    opts = {**options, **({"precision": precision} if precision else {})}
-                    runs.append(
-                        (name, f, False, *build(case, args.ne, stepper, f * dt_g, opts, clock, args.device, backend))
-                    )
-        for _, _, _, sim, _timers in runs:
-            for _ in range(math.ceil(args.spinup * 3600.0 / sim.scene.dt - 1e-9) + args.warmup):
-                sim.stepper.step(sim.x)
-        rhs_sim, out = runs[0][3], wp.zeros_like(runs[0][3].x)
-        rhs_ms, per_step = [], {i: [] for i in range(len(runs))}
-        for _ in range(args.steps):
-            sync()
-            t0 = clock()
-            for _ in range(5):
-                rhs_sim.model.rhs.__wrapped__(rhs_sim.x, out)  # untimed by the parts
-            sync()
-            rhs_ms.append((clock() - t0) / 5 * 1e3)
-            for i, (_, _, _, sim, timers) in enumerate(runs):
-                timers.reset()
-                sync()
-                t0 = clock()
-                st = sim.stepper.step(sim.x)
-                sync()
-                total = (clock() - t0) * 1e3
-                parts = {k: v * 1e3 for k, v in timers.total.items()}
-                parts["other"] = total - sum(v for k, v in parts.items() if k != "other")
-                per_step[i].append((total, parts, st))
-        rhs = statistics.median(rhs_ms)
-        cost = {i: statistics.median(s[0] for s in per_step[i]) / runs[i][3].scene.dt for i in per_step}
-        best = min((i for i in cost if runs[i][2]), key=cost.get)
-        print(
-            f"\n{case} ne{args.ne} np4: Δt_g = {dt_g:.1f} s, RHS {rhs:.2f} ms (median); {args.steps} timed steps after {args.spinup:g} h and {args.warmup} more; "
-            f"best explicit {runs[best][0]} @ {runs[best][3].scene.dt:.0f} s"
-        )
-        print(
-            "| stepper | Δt/Δt_g | Δt (s) | its/step | ms/step | "
-            + " | ".join(f"{p} ms (RHS-eq)" for p in PARTS)
-            + " | RHS-eq/step | RHS-eq per Krylov vector | cost/day vs best explicit |"
-        )
-        print("|---|---:|---:|---|---:|" + "---:|" * len(PARTS) + "---:|---:|---:|")
-        for i, (label, f, _, sim, _) in enumerate(runs):
-            steps = per_step[i]
-            ms = statistics.median(s[0] for s in steps)
-            parts = {p: statistics.median(s[1][p] for s in steps) for p in PARTS}
-            its = {
-                k: statistics.mean(s[2].iterations.get(k, 0) for s in steps)
-                for k in ("newton", "gmres", "helmholtz", "krylov")
-            }
-            per_vector = f"{ms / rhs / its['krylov']:.2f}" if its["krylov"] else "-"
-            its_text = ", ".join(f"{k} {v:.1f}" for k, v in its.items() if v) or "-"
-            print(
-                f"| {label} | {f:.2f} | {sim.scene.dt:.0f} | {its_text} | {ms:.1f} | "
-                + " | ".join(f"{parts[p]:.1f} ({parts[p] / rhs:.1f})" for p in PARTS)
-                + f" | {ms / rhs:.1f} | {per_vector} | {cost[i] / cost[best]:.2f} |"
-            )
+        runs = case_runs(args, case, dt_g, clock)
+        rhs_ms, per_step = timed_steps(args, runs, clock, sync)
+        report(args, case, dt_g, runs, rhs_ms, per_step)
 
 
 if __name__ == "__main__":

@@ -230,6 +230,48 @@ def parse() -> argparse.Namespace:
     return args
 
 
+def kernel_rows(args, grids: list, ms: dict, peak: float, l3: float, dram: float) -> list[dict]:
+    """Print and return each grid's launches per element-local node: flop and bytes, ns, GFLOP/s
+    against ``peak`` (the type's), GB/s against the triads in cache ``l3`` and from ``dram``."""
+    head = (
+        f"{'scene':<9} {'type':<7} {'kernel':<22} {'ne':>3} {'np':>2} {'flop/node':>9} {'B/node':>6} {'flop/B':>6} "
+        f"{'ns/node':>8} {'GFLOP/s':>7} {'% peak':>6} {'GB/s':>6} {'% L3 triad':>10} {'% DRAM triad':>12}"
+    )
+    print(f"\nper element-local node; medians of {args.rounds} rounds\n{head}\n{'-' * len(head)}")
+    rows = []
+    for g, grid in enumerate(grids):
+        own = peak * (2 if grid.precision == "float32" else 1)  # the type's lanes: float32 twice float64's
+        for k, (fl, nbytes) in grid.rows.items():
+            ns = statistics.median(ms[(g, k)]) * 1e6 / grid.N
+            gflops, gbs = fl / ns, nbytes / ns
+            print(
+                f"{grid.scene:<9} {grid.precision:<7} {k:<22} {grid.ne:>3} {grid.np:>2} {fl:>9.1f} {nbytes:>6.1f} "
+                f"{fl / nbytes:>6.2f} {ns:>8.2f} {gflops:>7.2f} {100 * gflops / own:>6.1f} {gbs:>6.2f} {100 * gbs / l3:>10.1f} "
+                f"{100 * gbs / dram:>12.1f}"
+            )
+            rows.append(
+                {
+                    "scene": grid.scene,
+                    "precision": grid.precision,
+                    "kernel": k,
+                    "ne": grid.ne,
+                    "np": grid.np,
+                    "nodes": grid.N,
+                    "copies": round(grid.copies, 4),
+                    "flops_per_node": fl,
+                    "bytes_per_node": nbytes,
+                    "ns_per_node": round(ns, 3),
+                    "gflops": round(gflops, 3),
+                    "percent_peak": round(100 * gflops / own, 2),
+                    "gbs": round(gbs, 3),
+                    "percent_triad_cache": round(100 * gbs / l3, 1),
+                    "percent_triad_dram": round(100 * gbs / dram, 1),
+                }
+            )
+        print()
+    return rows
+
+
 def main(args: argparse.Namespace, figures: dict) -> None:
     rhs_throughput.clock = time.process_time  # its triad's clock
     peak = args.clock_ghz * 8 * 2 * args.fma_units
@@ -269,42 +311,7 @@ def main(args: argparse.Namespace, figures: dict) -> None:
         f"(L3, {24 * args.triad_cache / 1e6:.0f} MB), {dram:.1f} GB/s from DRAM ({24 * args.triad_dram / 1e6:.0f} MB); "
         f"for scale {rate['triad L2']:.1f} GB/s in L2 ({24 * args.triad_l2 / 1e6:.2f} MB)"
     )
-    head = (
-        f"{'scene':<9} {'type':<7} {'kernel':<22} {'ne':>3} {'np':>2} {'flop/node':>9} {'B/node':>6} {'flop/B':>6} "
-        f"{'ns/node':>8} {'GFLOP/s':>7} {'% peak':>6} {'GB/s':>6} {'% L3 triad':>10} {'% DRAM triad':>12}"
-    )
-    print(f"\nper element-local node; medians of {args.rounds} rounds\n{head}\n{'-' * len(head)}")
-    rows = []
-    for g, grid in enumerate(grids):
-        own = peak * (2 if grid.precision == "float32" else 1)  # the type's lanes: float32 twice float64's
-        for k, (fl, nbytes) in grid.rows.items():
-            ns = statistics.median(ms[(g, k)]) * 1e6 / grid.N
-            gflops, gbs = fl / ns, nbytes / ns
-            print(
-                f"{grid.scene:<9} {grid.precision:<7} {k:<22} {grid.ne:>3} {grid.np:>2} {fl:>9.1f} {nbytes:>6.1f} "
-                f"{fl / nbytes:>6.2f} {ns:>8.2f} {gflops:>7.2f} {100 * gflops / own:>6.1f} {gbs:>6.2f} {100 * gbs / l3:>10.1f} "
-                f"{100 * gbs / dram:>12.1f}"
-            )
-            rows.append(
-                {
-                    "scene": grid.scene,
-                    "precision": grid.precision,
-                    "kernel": k,
-                    "ne": grid.ne,
-                    "np": grid.np,
-                    "nodes": grid.N,
-                    "copies": round(grid.copies, 4),
-                    "flops_per_node": fl,
-                    "bytes_per_node": nbytes,
-                    "ns_per_node": round(ns, 3),
-                    "gflops": round(gflops, 3),
-                    "percent_peak": round(100 * gflops / own, 2),
-                    "gbs": round(gbs, 3),
-                    "percent_triad_cache": round(100 * gbs / l3, 1),
-                    "percent_triad_dram": round(100 * gbs / dram, 1),
-                }
-            )
-        print()
+    rows = kernel_rows(args, grids, ms, peak, l3, dram)
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
     figures.update(
         peak_gflops=peak,

@@ -1,0 +1,185 @@
+"""benchmarks/README.md, written from the suite itself: each room's scripts (what each measures: its
+docstring's first sentence, or a shell script's first comment) and each script's latest figure read
+from its folder of results (the newest record by its date: the figure line it printed last, the
+command with its arguments, the date, the machine, the load average at the start and the end, and
+the commit). Nothing in it is typed by hand; a rerun on the same files writes the same page
+(no clock or file time is read)::
+
+    python benchmarks/tables.py            # rewrite benchmarks/README.md
+    python benchmarks/tables.py --check    # exit 1, naming the page, when it differs from the files
+
+Source: the practice of SpeedyWeather.jl, whose benchmark README is written by its runs."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import shlex
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+README = HERE / "README.md"
+GALLERY = HERE.parent / "docs" / "examples"  # the application scripts' place now, as plot_<name>.py
+ROOMS = {
+    "peers": "Peers: the same cases in other models (Dinosaur, HOMME, HOMME on RRM meshes, pySEs)",
+    "studies": "Studies: long steps, implicit cost, the Helmholtz preconditioners, float32's accuracy, "
+    "the face map, MPI scaling, and the package's own study commands",
+    "studies/control": "Studies: step control (error and CFL control, its cost)",
+    "studies/lts": "Studies: local time stepping",
+    "gpu": "GPU: the card script, its payload and the performance models ([GPU.md](gpu/GPU.md))",
+    "micro": "Micro: memory, ensembles, gradients, meshes, precision, a run's cost outside its steps",
+    "micro/step": "Micro: the RHS and the step (throughput, rooflines, parts, DSS, ∇⁴)",
+    "archive": "Archive: what a replaced path justified (kept runnable, not kept current)",
+    ".": "The suite's own modules and tools",
+}
+# a printed line that says how the run went, not what it measured
+NOT_A_FIGURE = ("load average", "figures written", "figure written")
+
+INTRO = """\
+# Benchmarks
+
+<!-- Written by `python benchmarks/tables.py` from benchmarks/results/: edit the scripts or
+tables.py, never this page (tests/test_benchmark_inputs.py checks that it regenerates unchanged). -->
+
+The suite in rooms by subject; each script writes its figures to `results/<script>/<stem>.json`
+(`results.py`: the printed lines and named figures beside the machine, the commit, the UTC date,
+the load average at the start and the end, and the command line), and this page is generated from
+those files. A row holds the latest record of its script, no history: earlier figures are in git
+(`git log -p -- benchmarks/results/<script>/`), and the hand-written page this replaced is
+`git show d6c19d2:benchmarks/README.md`. What accuracy costs is the documentation's explanation
+pages, which cite each figure's script and results file.
+
+Commits are compared by airspeed velocity (asv) on the suite in `asv/` (the default path's whole
+process, the RHS, a step, an ensemble step, a gradient): see "Regressions between commits" below.
+
+A script runs from the repository root (`python benchmarks/<room>/<script>.py --help`); bad input
+ends it as it ends the command line: one line naming the value, exit 2. CPU figures that repeat on a
+shared machine are one thread's on the CPU clock (`SWE_SPHERE_THREADS=1`, `--clock cpu` where a
+script offers it); each row gives its load average.
+"""
+
+ASV = """\
+## Regressions between commits
+
+`benchmarks/asv/` is an [asv](https://asv.readthedocs.io) suite over the public API, configured by
+`benchmarks/asv.conf.json`; each commit is built into an environment of its own (the machine's
+packages beside it). Two commits side by side, a change beyond the noise flagged:
+
+    asv continuous --config benchmarks/asv.conf.json --factor 1.1 d6c19d2 HEAD
+    asv run --config benchmarks/asv.conf.json --python=same --quick   # CI's form: the suite runs
+"""
+
+
+def summary(path: Path) -> str:
+    """What ``path`` measures: a Python script's docstring's first sentence, or the first comment
+    block's first sentence of a shell script (its shebang skipped)."""
+    text = path.read_text()
+    if path.suffix == ".py":
+        doc = ast.get_docstring(ast.parse(text)) or ""
+    else:
+        lines = [line for line in text.splitlines()[1:] if line.startswith("#")]
+        doc = " ".join(line.lstrip("# ").strip() for line in lines[:4])
+    first = " ".join(doc.split("\n\n")[0].split())
+    end = first.find(". ")
+    return cell(first if end < 0 else first[: end + 1])
+
+
+def cell(text: str) -> str:
+    """``text`` as one markdown table cell (pipes escaped)."""
+    return text.replace("|", "\\|").strip()
+
+
+def records(stem: str) -> list[dict]:
+    """The JSON records of script ``stem``, oldest first (by their own UTC date, then name)."""
+    out = []
+    for path in sorted((RESULTS / stem).glob("*.json")):
+        record = json.loads(path.read_text())
+        out.append({**record, "file": path.name})
+    return sorted(out, key=lambda r: (r.get("date", ""), r["file"]))
+
+
+def figure(record: dict) -> str:
+    """The record's figure: the last printed line that says what was measured."""
+    lines = [line.strip() for line in record.get("printed", []) if line.strip()]
+    kept = [line for line in lines if not line.lower().startswith(NOT_A_FIGURE)]
+    return cell(kept[-1]) if kept else "(nothing printed)"
+
+
+def conditions(record: dict, path: Path) -> str:
+    """The command (the script at its place now, the recorded arguments), the date, the machine,
+    the load average (1 min, start–end) and the commit of ``record``."""
+    args = shlex.split(record.get("command", ""))[2:]
+    command = shlex.join(["python", str(path.relative_to(HERE.parent)), *args])
+    if GALLERY in path.parents:  # an example now: its run as recorded, at its commit
+        command = record.get("command", "?")
+    machine = record.get("machine", {})
+    load = record.get("load_average", {})
+    start, end = (load.get(k, [None])[0] for k in ("start", "end"))
+    commit = (record.get("commit") or "?")[:7] + (" + local changes" if record.get("dirty") else "")
+    return cell(
+        f"`{command}`; {record.get('date', '?')[:10]}, {machine.get('cpu', '?')} ×{machine.get('cores', '?')}, "
+        f"load {start}–{end}, {commit}"
+    )
+
+
+def row(path: Path) -> str:
+    """A script's row: name, what it measures, its results, its latest figure and conditions."""
+    name = f"[`{path.name}`]({Path('..') / path.relative_to(HERE.parent) if GALLERY in path.parents else path.relative_to(HERE)})"
+    stem = path.stem.removeprefix("plot_") if GALLERY in path.parents else path.stem
+    folder = RESULTS / stem
+    files = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+    recs = records(stem)
+    if not files:
+        own = "recorded(" in path.read_text() or path.suffix == ".sh"  # else a module the scripts import
+        return f"| {name} | {summary(path)} | {'none yet' if own else 'a module of the suite'} | | |"
+    where = f"[{len(files)} file{'s' * (len(files) > 1)}](results/{stem}/)"
+    if not recs:
+        return f"| {name} | {summary(path)} | {where} (text: {cell(', '.join(files))}) | | |"
+    latest = recs[-1]
+    return f"| {name} | {summary(path)} | {where}, latest `{latest['file']}` | {figure(latest)} | {conditions(latest, path)} |"
+
+
+def scripts(room: str) -> list[Path]:
+    """The scripts directly in ``room`` (Python and shell), by name."""
+    folder = HERE / room
+    return sorted(p for p in folder.iterdir() if p.suffix in (".py", ".sh") and p.is_file())
+
+
+def moved() -> list[Path]:
+    """The gallery's examples that were benchmark scripts: those with a results folder here."""
+    return [p for p in sorted(GALLERY.glob("plot_*.py")) if (RESULTS / p.stem.removeprefix("plot_")).is_dir()]
+
+
+def page() -> str:
+    parts = [INTRO]
+    rooms = [(title, scripts(room)) for room, title in ROOMS.items()]
+    rooms.append(("The application scripts, now the documentation gallery's examples (their earlier runs)", moved()))
+    for title, paths in rooms:
+        parts.append(f"## {title}\n")
+        parts.append("| script | what it measures | results | latest figure | command, date, machine, load, commit |")
+        parts.append("|---|---|---|---|---|")
+        parts += [row(path) for path in paths]
+        parts.append("")
+    parts.append(ASV)
+    return "\n".join(parts)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 when the page differs from the results")
+    args = parser.parse_args(argv)
+    text = page()
+    if args.check:
+        if README.read_text() != text:
+            print(f"{README.relative_to(HERE.parent)} differs from its results: python benchmarks/tables.py")
+            return 1
+        return 0
+    README.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -82,7 +82,8 @@ def summary(path: Path) -> str:
     else:
         lines = [line for line in text.splitlines()[1:] if line.startswith("#")]
         doc = " ".join(line.lstrip("# ").strip() for line in lines[:4])
-    first = " ".join(doc.split("\n\n")[0].split())
+    title = [line for line in doc.split("\n\n")[0].splitlines() if not set(line.strip()) <= set("=-~^")]
+    first = " ".join(" ".join(title).split())  # (a gallery example's title: its underline left out)
     end = first.find(". ")
     return cell(first if end < 0 else first[: end + 1])
 

@@ -70,7 +70,7 @@ class DigitalFilter:
 
     def steps(self, rate: float) -> tuple[float, int]:
         """(Δt in s, n): the RK4 step and the steps each way to span/2, Δt ≤ COURANT / ``rate``
-        (``rate`` = max (|v| + sqrt(g h)) / Δx of x0, s⁻¹) dividing span/2."""
+        (``rate`` = ``max (|v| + sqrt(g h)) / Δx`` of x0, s⁻¹) dividing span/2."""
         half = self.span_hours * 1800.0
         n = max(2, math.ceil(half * rate / COURANT - 1e-9))
         return half / n, n

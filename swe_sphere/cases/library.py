@@ -105,6 +105,10 @@ class Case:
         """Return (u, v, h) at t = 0."""
         raise NotImplementedError
 
+    def notes(self) -> tuple:
+        """Lines for the run's header and its scene: what the case read to make its start (none here)."""
+        return ()
+
     def exact(self, lat, lon, t):
         """Return (u, v, h) at time t (s); only for cases with ``exact_solution``."""
         raise NotImplementedError(f"{type(self).__name__} has no exact solution")

@@ -282,7 +282,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
     hv, element_filter, hv_notes = _dissipation(s, hv, hv_notes, span, dt, t)
     name, description = _title(t.case, file_case, stem, s.get("description", ""), overrides)
     notes = t.case.notes + t.grid_notes + dt_notes + stepper_notes + cfl_notes(control, t.stepper) + hv_notes
-    return Scene(
+    scene = Scene(
         name=name,
         description=description,
         case=t.case.name,
@@ -319,6 +319,9 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         precision=t.precision,
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
     )
+    if t.case.case.notes():  # what the case read, said as the run's grid has it read (a reanalysis: its truncation)
+        scene = dataclasses.replace(scene, notes=(*scene.make_case().notes(), *scene.notes))
+    return scene
 
 
 class Tables(NamedTuple):

@@ -229,19 +229,21 @@ def _horizontal(ds: _Source, var: _Variable, where: str) -> tuple[str, str]:
 
 def _select(ds: _Source, var: _Variable, level, time, where: str):
     """(values (lat, lon), its latitude and longitude dimensions, the pressure level taken in hPa
-    or None where the file does not say) of ``var`` at ``level`` (hPa) and ``time`` (module
-    docstring), its other dimensions gone."""
+    or None where the file does not say, and each other dimension's value taken as "DIM VALUE")
+    of ``var`` at ``level`` (hPa) and ``time`` (module docstring), its other dimensions gone."""
     lat, lon = _horizontal(ds, var, where)
     values, dims = var.values(), list(var.dims)
     rest = [d for d in dims if d not in (lat, lon)]
     vertical = next((d for d in rest if d in LEVEL_NAMES or _pressure_factor(ds, d) is not None), None)
-    taken = None if level is None else float(level)
+    taken, picked = None if level is None else float(level), []
 
     def take(dim, index):
         nonlocal values
         values = np.take(values, index, axis=dims.index(dim))
         dims.remove(dim)
         rest.remove(dim)
+        shown = _shown_hpa if dim == vertical else _shown
+        picked.append(shown(ds, dim, index=index))
 
     if level is not None:
         index = _at_level(ds, var, vertical, float(level), where)
@@ -265,7 +267,7 @@ def _select(ds: _Source, var: _Variable, level, time, where: str):
             raise SceneError(f"{where}: {var.name} is 3-D: give a level (hPa; the file has {_shown_hpa(ds, dim)})")
         else:
             raise SceneError(f"{where}: {var.name} has {ds.sizes[dim]} {dim} values: give a time ({_shown(ds, dim)})")
-    return (values if dims == [lat, lon] else values.T), lat, lon, taken
+    return (values if dims == [lat, lon] else values.T), lat, lon, taken, picked
 
 
 def _pressure_factor(ds: _Source, dim) -> float | None:
@@ -274,8 +276,10 @@ def _pressure_factor(ds: _Source, dim) -> float | None:
     return None if units is None else PRESSURE_UNITS.get(normal(units))
 
 
-def _shown(ds: _Source, dim, values=None, unit: str = "") -> str:
+def _shown(ds: _Source, dim, values=None, unit: str = "", index=None) -> str:
+    """``dim``'s values (the first 8; the one at ``index`` where given) for a message."""
     values = ds.coordinate(dim) if values is None else values
+    values = values if index is None else values[index : index + 1]
     text = [str(v)[:19] if np.issubdtype(values.dtype, np.datetime64) else f"{v:g}" for v in values[:8]]
     return f"{dim} " + ", ".join(text) + (", ..." if values.size > 8 else "") + unit
 
@@ -285,8 +289,8 @@ def _hpa(ds: _Source, dim) -> np.ndarray:
     return np.asarray(ds.coordinate(dim), dtype=np.float64) * (_pressure_factor(ds, dim) or 1.0)
 
 
-def _shown_hpa(ds: _Source, dim) -> str:
-    return _shown(ds, dim, _hpa(ds, dim), " hPa")
+def _shown_hpa(ds: _Source, dim, index=None) -> str:
+    return _shown(ds, dim, _hpa(ds, dim), " hPa", index)
 
 
 def _at_level(ds: _Source, var: _Variable, vertical, level: float, where: str) -> int | None:
@@ -375,14 +379,23 @@ def _field(ds: _Source, role: str, level, time, where: str):
     name = _find(ds, role, where)
     var = ds.variables[name]
     scale = _scale(var, role, where)
-    *selected, taken = _select(ds, var, level, time, where)
+    *selected, taken, picked = _select(ds, var, level, time, where)
     values, phi0, rings, degree = _grid(ds, *selected, where)
     bad = np.count_nonzero(~np.isfinite(values))
     if bad:
         raise SceneError(f"{where}: {name} has {bad} missing values (NaN or fill values): a state must be whole")
     if role == "height" and taken is not None:
         _plausible(values * scale / G0, var, taken, where)
-    return values * scale, phi0, rings, degree
+    what = {"u": "", "v": ""}.get(role, " as a geopotential" if scale == 1.0 else " as a geopotential height")
+    return values * scale, phi0, rings, degree, f"{name}{what}" + (f" ({', '.join(picked)})" if picked else "")
+
+
+RINGS = {  # ducc0's ring layouts as a reader says them
+    "GL": "Gaussian",
+    "CC": "regular (poles included)",
+    "F1": "regular (no poles: offset half a row)",
+    "DH": "regular (the north pole alone)",
+}
 
 
 def standard_height(level: float) -> float:
@@ -437,6 +450,7 @@ class Analysed:
     hs: np.ndarray | None
     lmax: int
     a: float
+    read: str = ""  # what was read and how (``analyse``): the variables, level, time, grid and truncation
 
     def at(self, lat, lon) -> dict[str, np.ndarray]:
         """``reference.spectral_fields`` at ``lat``, ``lon`` (radians, any equal shape), with
@@ -463,9 +477,10 @@ def analyse(source, level=None, time=None, truncation=None, grid_degree=None, su
         height, u, v = (_field(ds, role, level, time, where) for role in ("height", "u", "v"))
     finally:
         ds.close()
-    if v[1:] != u[1:] or height[1:] != u[1:]:
+    if v[1:4] != u[1:4] or height[1:4] != u[1:4]:
         raise SceneError(f"{where}: the height and the wind are on different grids")
-    _, phi0, rings, degree = height
+    _, phi0, rings, degree, said = height
+    nlat, nlon = height[0].shape
     if truncation is not None and not (isinstance(truncation, (int, float)) and 1 <= truncation == int(truncation)):
         raise SceneError(f"case.truncation must be a whole degree >= 1 (got {truncation!r})")
     cut = degree if grid_degree is None else min(degree, int(grid_degree))
@@ -483,7 +498,13 @@ def analyse(source, level=None, time=None, truncation=None, grid_degree=None, su
     root = np.sqrt(l * (l + 1.0)) / planet.a
     hs = None if surface is None else _surface(surface, lmax, weights, where) / planet.g
     h_surface = scalar(height[0], phi0) / planet.g
-    return Analysed(h_surface, -weights * root * b, -weights * root * e, hs, lmax, planet.a)
+    read = (
+        f"{said}; wind {u[4].partition(' (')[0]}, {v[4].partition(' (')[0]}; a {RINGS[rings]} grid of {nlat} x "
+        f"{nlon}, analysed to T{lmax} "
+        + ("(sharp)" if truncation is not None else "(tapered: cos² from 2/3 of it)")
+        + ("" if surface is None else f", over the surface of {Path(surface).name}")
+    )
+    return Analysed(h_surface, -weights * root * b, -weights * root * e, hs, lmax, planet.a, read)
 
 
 def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
@@ -493,7 +514,7 @@ def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
     where = f"surface file {surface} ({where})"
     ds = _open(surface, where)
     try:
-        values, phi0, rings, degree = _field(ds, "surface", None, None, where)
+        values, phi0, rings, degree, _ = _field(ds, "surface", None, None, where)
     finally:
         ds.close()
     if lmax > degree:
@@ -541,6 +562,9 @@ class Reanalysis(Case):
 
     def hs(self, lat, lon):
         return self._state.at(lat, lon)["hs"]
+
+    def notes(self) -> tuple:
+        return (f"read from {Path(self.initial_file).name}: {self._state.read}",)
 
     def initial(self, lat, lon):
         return _initial(self._state.at(lat, lon), self.initial_file, self.surface_file)

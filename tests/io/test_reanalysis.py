@@ -4,6 +4,7 @@ written)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -364,6 +365,28 @@ def test_a_run_from_a_file_and_a_scene_from_one(capsys, tmp_path, monkeypatch):
     assert np.array_equal(h0, scene.h.isel(time=0).values) and np.array_equal(h0, ds.h.isel(time=0).values)
     mean = float((from_file.area * h0).sum() / from_file.area.sum())
     assert abs(mean - 5500.0) < 2.0, mean  # ne2's GLL quadrature of a degree-12 field: 0.85 m off
+
+
+def test_a_run_says_and_records_what_it_read(capsys, tmp_path, monkeypatch):
+    """Issue 127, item 13: a run from a reanalysis file says, and its run file's scene records, the
+    variables taken and as what, the level and time, the grid found and the truncation the run's
+    grid asked for (T8 at ne 2 np 3: 2 ne (np - 1)), as the NCEP file's height is a geopotential height."""
+    monkeypatch.chdir(tmp_path)
+    _dataset(kind="poles", nlat=27).to_netcdf("state.nc")
+    code, out, err = cli_main(capsys, "run", "state.nc", "--ne", "2", "--np", "3", "--days", "0.25", "--no-progress")
+    assert code == 0, err
+    said = (
+        "read from state.nc: z as a geopotential (time 2021-01-15T00:00:00, level 500 hPa); wind u, v; "
+        "a regular (poles included) grid of 27 x 48, analysed to T8 (tapered: cos² from 2/3 of it)"
+    )
+    assert f"note        {said}\n" in out
+    with xr.open_dataset("state_ne2np3_kgu35_0.25d.nc", decode_times=False) as ds:
+        assert json.loads(ds.attrs["scene"])["notes"][0] == said
+    ncep = analyse(DATA / "ncep_june_climo_500hPa.nc", level=500)
+    assert (
+        ncep.read.startswith("Z3 as a geopotential height")
+        and "a Gaussian grid of 64 x 128, analysed to T63" in ncep.read
+    )
 
 
 def test_case_7_starts_from_its_reference_and_is_scored_against_it(capsys, tmp_path, monkeypatch):

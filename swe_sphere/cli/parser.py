@@ -240,7 +240,8 @@ def _run(sub, parents) -> None:
         "--members",
         type=int,
         metavar="N",
-        help="an ensemble: N members of the scene advanced together (any stepper, fixed dt), in the same launches "
+        help="an ensemble: N members of the scene advanced together (any stepper; under step control one dt for "
+        "every member), in the same launches "
         "on CUDA for an explicit stepper, else each on a model of its own in turn (--layout); one run file with "
         "a member dimension, each field's ensemble mean and spread; give the members their starts (--perturbation, "
         "--vary or --initial), else they are alike",

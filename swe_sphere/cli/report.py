@@ -161,9 +161,9 @@ def print_output(scene, output, only: str = "") -> None:
     """A header's line of the run file ``output`` (a run's and an ensemble's): its interval, or
     where the run is shorter than that, the two times it holds (the run's start and its end)."""
     every = scene.output_every_days
-    when = f"every {every:g} days"
+    when = "every day" if every == 1 else f"every {every:g} days"
     if every > scene.run_days:  # ``--days 0.5`` of a scene writing every day: no time but the start and the end
-        when = f"at the start and at day {scene.days:g}: the run is shorter than its interval, {when}"
+        when = f"at the start and at day {scene.days:g}: the run is shorter than its {every:g}-day interval"
     print(f"output      {output} ({when}{only})")
 
 

@@ -681,7 +681,8 @@ class Simulation:
         ValueError
             ``every`` is not then a whole number of steps (naming a Δt that was given).
         ArgumentError
-            Under step control, as ``advance``.
+            Under step control ([time] control): the controller chooses the steps (``advance``
+            steps under it, landing on the day reached).
         BlowUp, StepFailure, Interrupted
             As ``run``.
         """

@@ -47,16 +47,17 @@ def test_grid_keys_a_mesh_file_would_drop_are_refused(capsys):
 
 def test_a_run_shorter_than_its_output_interval_says_the_two_times_its_file_holds(capsys):
     """``--days 0.25`` of a scene writing every day said "every 1 days" of a file that holds the
-    start and the end alone; a run as long as its interval, or longer, keeps "every"."""
+    start and the end alone (and then beside them: issue 127, item 15); a run as long as its
+    interval, or longer, keeps "every"."""
     import xarray as xr
 
     code, out, err = cli_main(capsys, "run", "tc2_steady", "--ne", "2", "--days", "0.25", "--device", "cpu")
     (line,) = [line for line in out.splitlines() if line.startswith("output ")]
     assert code == 0 and line.endswith(
-        "(at the start and at day 0.25: the run is shorter than its interval, every 1 days)"
+        "(at the start and at day 0.25: the run is shorter than its 1-day interval)"
     ), line
     output = Path(line.split()[1])
     with xr.open_dataset(output) as ds:
         assert ds.sizes["time"] == 2
     code, out, err = cli_main(capsys, "run", "tc2_steady", "--ne", "2", "--days", "1", "--device", "cpu", "--overwrite")
-    assert code == 0 and f"output      {output.name.replace('0.25d', '1d')} (every 1 days)" in out.splitlines(), out
+    assert code == 0 and f"output      {output.name.replace('0.25d', '1d')} (every day)" in out.splitlines(), out

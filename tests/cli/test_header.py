@@ -53,9 +53,9 @@ def test_a_run_shorter_than_its_output_interval_says_the_two_times_its_file_hold
 
     code, out, err = cli_main(capsys, "run", "tc2_steady", "--ne", "2", "--days", "0.25", "--device", "cpu")
     (line,) = [line for line in out.splitlines() if line.startswith("output ")]
-    assert code == 0 and line.endswith(
-        "(at the start and at day 0.25: the run is shorter than its 1-day interval)"
-    ), line
+    assert code == 0 and line.endswith("(at the start and at day 0.25: the run is shorter than its 1-day interval)"), (
+        line
+    )
     output = Path(line.split()[1])
     with xr.open_dataset(output) as ds:
         assert ds.sizes["time"] == 2

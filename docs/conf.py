@@ -91,6 +91,8 @@ sphinx_gallery_conf = {
     "gallery_dirs": "gallery",
     "filename_pattern": r"\.py$",  # every example runs, whatever its name
     "ignore_pattern": r"__init__\.py|^_",  # helpers named _*.py are imported, not shown (matched on the file name)
+    # the gallery's sections from a first run to data assimilation, each a folder of docs/examples
+    "subsection_order": ["examples/runs", "examples/studies", "examples/gradients", "examples/assimilation"],
     "abort_on_example_error": True,
     "matplotlib_animations": False,
     "download_all_examples": False,

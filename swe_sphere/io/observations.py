@@ -1,7 +1,8 @@
 """Observations of a run's height at points: the observation operator H (``PointHeights``) and
 observations of h at several steps with their errors (``HeightObservations``), what a data
 assimilation reads of a run, by a gradient (4D-Var: ``adjoint.gradient``, of which a
-``HeightObservations`` is a cost) or by an ensemble (an EnKF: the gallery's ``docs/examples/plot_enkf_filter.py``).
+``HeightObservations`` is a cost) or by an ensemble (an EnKF: the gallery's
+``docs/examples/assimilation/plot_enkf_filter.py``).
 
 H evaluates h at a point from the element's own GLL polynomial, Σ_ij ℓ_i(ξ) ℓ_j(η) h_ij, as
 ``remap.Remapper`` does for maps (its point location and weights): a sparse (M, N) matrix over

@@ -1,5 +1,6 @@
-"""docs/examples/_assimilation.py, the gallery's assimilation examples' shared functions, as a
-module (docs/examples/ is no package: sphinx-gallery runs its files with the folder on the path)."""
+"""docs/examples/assimilation/_assimilation.py, the gallery's assimilation examples' shared
+functions, as a module (docs/examples/ is no package: sphinx-gallery runs its files with the folder
+on the path)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import functools
 import importlib.util
 from pathlib import Path
 
-HELPERS = Path(__file__).resolve().parents[2] / "docs" / "examples" / "_assimilation.py"
+HELPERS = Path(__file__).resolve().parents[2] / "docs" / "examples" / "assimilation" / "_assimilation.py"
 
 
 @functools.cache

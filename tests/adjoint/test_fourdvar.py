@@ -1,6 +1,6 @@
-"""The 4D-Var-style recovery of the gallery (docs/examples/plot_fourdvar.py, its functions in
-docs/examples/_assimilation.py): L-BFGS on ``gradient`` recovers an initial height field from
-the final one, on a grid small enough for the suite."""
+"""The 4D-Var-style recovery of the gallery (docs/examples/assimilation/plot_fourdvar.py, its
+functions in docs/examples/assimilation/_assimilation.py): L-BFGS on ``gradient`` recovers an
+initial height field from the final one, on a grid small enough for the suite."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
-"""The 4D-Var example from point observations (docs/examples/plot_fourdvar_points.py, its
-functions in docs/examples/_assimilation.py): Galewsky's bump recovered from h at points every
-3 hours, on a grid small enough for the suite."""
+"""The 4D-Var example from point observations (docs/examples/assimilation/plot_fourdvar_points.py,
+its functions in docs/examples/assimilation/_assimilation.py): Galewsky's bump recovered from h at
+points every 3 hours, on a grid small enough for the suite."""
 
 from __future__ import annotations
 

@@ -26,14 +26,13 @@ import numpy as np
 import scipy.optimize
 
 import swe_sphere
-from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.cases.reference import Reference, reference_path
 
 NE, DAYS, TRUNCATION = 4, 1.0, "T341"
 scene = swe_sphere.load_scene("tc5_mountain", ne=NE, np_=4, days=DAYS)
 steps = round(DAYS * 86400.0 / scene.dt)
-model = scene_model(scene)[0]
-grid, hs = model.grid, model.operators.hs.numpy()
+sim = swe_sphere.Simulation(scene, progress=False)  # built, not run: its grid and surface height
+grid, hs = sim.grid, sim.hs
 surface = Reference(reference_path(scene.make_case(), TRUNCATION)).at(DAYS, grid.lat, grid.lon)["h_surface"]
 misfit = swe_sphere.HeightMisfit(surface - hs)  # the misfit of h against (h + hs)_ref − hs
 total = grid.spheremp.sum()  # 4πa²

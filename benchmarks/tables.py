@@ -22,7 +22,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 README = HERE / "README.md"
-GALLERY = HERE.parent / "docs" / "examples"  # the application scripts' place now, as plot_<name>.py
+GALLERY = HERE.parent / "docs" / "examples"  # the application scripts' place now, as <section>/plot_<name>.py
 ROOMS = {
     "peers": "Peers: the same cases in other models (Dinosaur, HOMME, HOMME on RRM meshes, pySEs)",
     "studies": "Studies: long steps, implicit cost, the Helmholtz preconditioners, float32's accuracy, "
@@ -151,7 +151,11 @@ def scripts(room: str) -> list[Path]:
 
 def moved() -> list[Path]:
     """The gallery's examples that were benchmark scripts: those with a results folder here."""
-    return [p for p in sorted(GALLERY.glob("plot_*.py")) if (RESULTS / p.stem.removeprefix("plot_")).is_dir()]
+    return [
+        p
+        for p in sorted(GALLERY.rglob("plot_*.py"), key=lambda p: p.name)
+        if (RESULTS / p.stem.removeprefix("plot_")).is_dir()
+    ]
 
 
 def page() -> str:

@@ -22,8 +22,10 @@ import io
 import json
 import os
 import platform
+import statistics
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -84,6 +86,26 @@ def check_sources(parser, sources) -> None:
     for source in sources:
         if source is not None and not (Path(source) / "swe_sphere").is_dir():
             parser.error(f"--source {source}: no swe_sphere tree there")
+
+
+def interleaved(calls: dict, rounds: int) -> dict:
+    """The median over ``rounds`` of each call's mean CPU ms: ``calls`` maps a name to (a call, how
+    many times a round), the calls taken in turn each round, so that a change of the machine's load
+    hits each alike; the CPU clock of this process (one thread: ``SWE_SPHERE_THREADS=1``)."""
+    ms = {k: [] for k in calls}
+    for _ in range(rounds):
+        for k, (call, reps) in calls.items():
+            start = time.process_time()
+            for _ in range(reps):
+                call()
+            ms[k].append((time.process_time() - start) / reps * 1e3)
+    return {k: statistics.median(v) for k, v in ms.items()}
+
+
+def timed(f, calls: int, rounds: int) -> float:
+    """The median over ``rounds`` of the mean CPU ms of ``calls`` calls of f (one call first)."""
+    f()
+    return interleaved({"f": (f, calls)}, rounds)["f"]
 
 
 def interleave(a: list, b: list) -> list:

@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 from unittest import mock
 
@@ -31,7 +29,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import interleaved, positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
 from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.grid.topology import Topology  # noqa: E402
@@ -57,16 +55,9 @@ def measure(scene: str, grid: dict, steps: int, rounds: int) -> dict:
     for sim in sims.values():  # recorded and compiled
         for _ in range(steps):
             sim.stepper.step(sim.x)
-    ms = {k: [] for k in sims}
-    for _ in range(rounds):
-        for k, sim in sims.items():
-            start = time.process_time()
-            for _ in range(steps):
-                sim.stepper.step(sim.x)
-            ms[k].append((time.process_time() - start) / steps * 1e3)
+    med = interleaved({k: (lambda s=sim: s.stepper.step(s.x), steps) for k, sim in sims.items()}, rounds)
     same = bool(np.array_equal(sims["element"].x.numpy(), sims["node"].x.numpy()))
     s = sims["element"].scene
-    med = {k: statistics.median(v) for k, v in ms.items()}
     return {
         "scene": scene,
         "grid": f"ne{s.ne} np{s.np}",

@@ -1,8 +1,9 @@
 """The default path's whole process: ``swe-sphere run tc5_mountain`` (the scene's stepper, CPU, one
 thread, a run file written) at ne30 for 0.25 day and ne120 for 0.01 day, as a user starts it: wall
 seconds, CPU seconds and peak resident memory of the child process, the median of ``ROUNDS`` runs
-after one untimed (Warp's kernels compiled into its cache; the quick form: one run of ne4). This is what ``default_path.sh`` timed
-by hand before; asv times each commit in turn, so ``asv continuous BASE HEAD`` is its comparison."""
+after one untimed (Warp's kernels compiled into its cache; the quick form: one run of ne4). It
+replaces ``default_path.sh`` (two trees by hand, last in d6c19d2): asv builds each commit, and
+``asv continuous BASE HEAD`` compares them."""
 
 import os
 import statistics

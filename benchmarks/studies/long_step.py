@@ -50,10 +50,9 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import DAY, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import DAY, recorded, timed  # noqa: E402  (after the path: benchmarks/ first)
 
 # isort: split
-from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 
 from swe_sphere import (  # noqa: E402
     ArgumentError,

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 from unittest import mock
 
@@ -33,7 +31,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import interleaved, positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
 
 from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.model.hyperviscosity import Hyperviscosity  # noqa: E402
@@ -75,23 +73,15 @@ def measure(scene: str, grid: dict, steps: int, evals: int, rounds: int) -> dict
         for _ in range(steps):
             sim.stepper.step(sim.x)
         sim.model.hv.operator(sim.x, outs[k])
-    ms = {k: [] for k in sims}
-    hv = {k: [] for k in sims}
-    for _ in range(rounds):
-        for k, sim in sims.items():
-            start = time.process_time()
-            for _ in range(steps):
-                sim.stepper.step(sim.x)
-            ms[k].append((time.process_time() - start) / steps * 1e3)
-            start = time.process_time()
-            for _ in range(evals):
-                sim.model.hv.operator(sim.x, outs[k])
-            hv[k].append((time.process_time() - start) / evals * 1e3)
+    calls = {}
+    for k, sim in sims.items():  # a round: each model's steps, then its ∇⁴ alone
+        calls["step", k] = (lambda s=sim: s.stepper.step(s.x), steps)
+        calls["hv", k] = (lambda s=sim, o=outs[k]: s.model.hv.operator(s.x, o), evals)
+    ms = interleaved(calls, rounds)
     same = bool(np.array_equal(sims["across"].x.numpy(), sims["rows"].x.numpy()))
     same &= bool(np.array_equal(outs["across"].numpy(), outs["rows"].numpy()))
     s = sims["across"].scene
-    med = {k: statistics.median(v) for k, v in ms.items()}
-    hmed = {k: statistics.median(v) for k, v in hv.items()}
+    med, hmed = ({k: ms[part, k] for k in sims} for part in ("step", "hv"))
     return {
         "scene": scene,
         "grid": f"ne{s.ne} np{s.np}",

@@ -80,11 +80,10 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import positive, recorded, timed  # noqa: E402  (after the path: benchmarks/ first)
 
 # isort: split
 import rhs_throughput  # noqa: E402  (benchmarks/: the triad)
-from lts_step_cost import timed  # noqa: E402  (benchmarks/: the median of mean CPU ms)
 
 from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.core.parallel import SplitLaunch  # noqa: E402

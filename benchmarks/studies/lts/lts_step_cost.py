@@ -18,29 +18,15 @@ import argparse
 import dataclasses
 import json
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import quiet_warp, recorded
+from results import quiet_warp, recorded, timed
 
 from swe_sphere import Simulation, load_scene
 
 DAY = 86400.0
-
-
-def timed(f, calls: int, rounds: int) -> float:
-    """The median over ``rounds`` of the mean CPU ms of ``calls`` calls of f (one call first)."""
-    f()
-    out = []
-    for _ in range(rounds):
-        start = time.process_time()
-        for _ in range(calls):
-            f()
-        out.append((time.process_time() - start) / calls * 1e3)
-    return statistics.median(out)
 
 
 def main() -> None:

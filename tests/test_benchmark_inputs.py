@@ -130,7 +130,7 @@ def test_the_rooms_keep_the_suite_s_rules():
     assert len(modules) == len(set(modules)), sorted(s for s in modules if modules.count(s) > 1)
     stems = {p.stem for p in scripts}
     gallery = BENCHMARKS.parent / "docs" / "examples"  # the application scripts' place now, as plot_<name>.py
-    elsewhere = {p.stem.removeprefix("plot_") for p in gallery.glob("plot_*.py")}
+    elsewhere = {p.stem.removeprefix("plot_") for p in gallery.rglob("plot_*.py")}
     orphans = {p.name for p in (BENCHMARKS / "results").iterdir()} - stems - elsewhere
     assert not orphans, orphans
     long, ensembles = {}, []

@@ -282,7 +282,7 @@ class Scorer:
         and divergence (``total_error_vorticity``, ``total_error_divergence``), the divergence's
         by region too (``total_error_divergence_refined`` …); NaN where ``unscored``. Against a
         reference the vorticity's is Williamson's eq. 83 (``ref_l2_vorticity_eq83``), the measure
-        the peers publish and ``benchmarks/peer_dinosaur.py`` scores every model by, so that a
+        the peers publish and ``benchmarks/peers/peer_dinosaur.py`` scores every model by, so that a
         frontier and the peers are read on one scale (the curl of the wind error,
         ``ref_l2_vorticity``, is 6–8 % below it at np 8: issue 81)."""
         whole = self.topology.gather(x)

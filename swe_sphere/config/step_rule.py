@@ -25,7 +25,7 @@ from .schema import SceneGrid, is_number
 DT_NOTES = ("dt scaled", "warning: dt cut")
 
 # A ∇⁴ evaluation's cost against the rest of a step (one thread, CPU clock, medians of 9
-# interleaved rounds, benchmarks/hyperviscosity_every.py, results sparse_every_*.json): 0.76 for TC5 ne8
+# interleaved rounds, benchmarks/micro/step/hyperviscosity_every.py, results sparse_every_*.json): 0.76 for TC5 ne8
 # np4 rk4, 1.04 for galewsky ne12 np8 kgu35, 1.08 at ne22 np6
 HV_SHARE = 0.9
 # A dt shortened for a sparser ∇⁴ only where that saves more than the cost model's own error: 2 %

@@ -1,7 +1,7 @@
 """The machine a run meets: Warp initialised quietly, memory
 estimated before anything large is allocated.
 
-Memory figures are from ``benchmarks/memory.py`` (tc5_mountain ne = 60 np = 4,
+Memory figures are from ``benchmarks/micro/memory.py`` (tc5_mountain ne = 60 np = 4,
 leapfrog_trapezoidal): a run's resident memory above the import baseline is
 about 1 020 bytes per element-local node (state, metric, model and stepper work
 arrays, the host grid and its construction temporaries, output buffers). The

@@ -1,5 +1,5 @@
 """What the model asks of the device, counted: kernel launches, their bytes, memsets
-and copies, and host reads (the measure of ``benchmarks/gpu_model.py`` and of
+and copies, and host reads (the measure of ``benchmarks/gpu/gpu_model.py`` and of
 the tests that a step needs no host round trip).
 
 ``instrumented(tally)`` wraps Warp's launch entry points (recorded

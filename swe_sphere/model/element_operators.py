@@ -35,7 +35,7 @@ class ElementOperators:
     the np the per-node tendency and ∇⁴ kernels are compiled for (the grid's; 0, the per-element
     layout's, whose kernels take it otherwise). Compiled for np, their loops along an element's rows
     unroll and a node's indices divide by a constant: a step's graph 8 % faster for galewsky, 4 % for
-    TC5 ne30 and as fast at ne120 on an H100, the same bits (issue 83 item 5; benchmarks/GPU.md).
+    TC5 ne30 and as fast at ne120 on an H100, the same bits (issue 83 item 5; benchmarks/gpu/GPU.md).
 
     Arrays (device, element-local, N the grid's nodes): ``D``, ``Dinv`` (N, 2, 2; m and m⁻¹ per
     reference unit), ``metdet`` (N,), ``dvv`` (np, np), ``dvv_rows`` (the per-element kernels'

@@ -335,7 +335,7 @@ class Hyperviscosity:
     def _frame(self, *names, rows=False, depth=0.0):
         """A ``kernels.hyperviscosity.frame_type`` of the ∇⁴'s float type holding its geometry
         arrays of these names (``geometry``: xyz, east, north, Dinv), the others null: what a ∇⁴
-        pass reads and no more (a launch's arguments are what ``benchmarks/gpu_model.py`` counts
+        pass reads and no more (a launch's arguments are what ``benchmarks/gpu/gpu_model.py`` counts
         as its traffic), and the reference ``depth`` H₀ (m; ``build``'s, read by the first pass);
         with ``rows``, the element kernels' frame of their row views (``as_rows``)."""
         m = self.model

@@ -125,7 +125,7 @@ class HostVectors:
     Warp arrays (the backend on a CPU device). Warp's CPU kernels run a pass over
     a vector at ~5 ns an entry, where BLAS runs one at ~0.2–0.7 ns: with the kernels,
     the Gram–Schmidt and combination passes cost more than the J·v of a Krylov
-    vector at ne16 (``benchmarks/implicit_cost.py --krylov``). The passes are
+    vector at ne16 (``benchmarks/studies/implicit_cost.py --krylov``). The passes are
     single-threaded: the vectors are short (in cache at ne30) and a BLAS thread
     pool spinning beside the model's threads made a norm cost 10 ms (``Simulation``
     runs with one BLAS thread, as ``Topology.dot``'s inner products assume). An

@@ -196,7 +196,7 @@ EXPLICIT |= {
 
 # the IMEX pairs' advective Courant limits (|v| Δt/Δx at t = 0; their gravity waves implicit),
 # below the smallest stable one of the stability suite's bisections at ne 8 (Galewsky np 8, TC6
-# and TC5 np 4; benchmarks/results/stability_imex_pairs_ne8.csv): ark324 2.71 / 2.35 / 0.88,
+# and TC5 np 4; benchmarks/results/cli_runs/stability_imex_pairs_ne8.csv): ark324 2.71 / 2.35 / 0.88,
 # ark436 1.34 / 0.84 / 1.18, as ``imex``'s 1.0 lies below ARS(3,4,3)'s 2.71 / 2.35 / 1.01 there
 IMEX_ADVECTIVE_LIMITS = {"ark324": 0.85, "ark436": 0.8}
 

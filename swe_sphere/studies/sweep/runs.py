@@ -114,7 +114,7 @@ def rhs_time(sim: Simulation, span: float = 0.2, rounds: int = 5, clock=time.per
     of one RHS evaluation of ``sim``'s model on its last good state,
     the median over ``rounds`` of batches of about ``span`` seconds each: the unit of a
     run's cost in RHS-evaluation equivalents (wall time / this, as
-    ``benchmarks/implicit_cost.py`` counts them), measured in the run's own process
+    ``benchmarks/studies/implicit_cost.py`` counts them), measured in the run's own process
     just after it, so that it shares the run's threads and, roughly, the machine's
     load. The batches last long enough to be preempted as the run was: on a loaded
     machine a single millisecond-long call often runs within one time slice, and

@@ -88,7 +88,7 @@ class Case:
     # the full shallow-water dynamics unless the case says less is valid
     required_terms = frozenset({"continuity", "momentum_advection", "coriolis", "pressure_gradient"})
     h_is_depth = True  # False: h is a tracer carried by a prescribed wind (TC1)
-    reference_file = None  # name of its T213 reference under testcases/reference/, if any
+    reference_file = None  # name of the reference it is scored against by default (testcases/reference/), if any
 
     def forcing(self):
         """(kernel, params) of the case's analytic forcing for ``ShallowWater``'s

@@ -335,14 +335,14 @@ def _bundled(name: str) -> Path:
     return Path(str(importlib.resources.files("swe_sphere.testcases") / "reference" / name))
 
 
-def reference_path(case, truncation: str = "T213") -> Path | None:
+def reference_path(case, truncation: str | None = None) -> Path | None:
     """The installed reference file of a case object at a truncation: its own
-    (``Case.reference_file``, T213) or the bundled file of the same case at another
+    (``Case.reference_file``: T213, case 7's T341) or the bundled file of the same case at another
     truncation ("T341": ``tc5_mountain_T213.nc`` → ``tc5_mountain_T341.nc``).
     None if the case has no reference or the file is not installed."""
     if case.reference_file is None:
         return None
-    path = _bundled(f"{_stem(case)}_{truncation}.nc")
+    path = _bundled(f"{_stem(case)}_{truncation}.nc" if truncation is not None else case.reference_file)
     return path if path.is_file() else None
 
 

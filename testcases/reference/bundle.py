@@ -38,6 +38,7 @@ BUNDLE = {
     "galewsky_T341.nc": ("galewsky", (6,)),
     "tc2_steady_alpha_pi4_T213.nc": ("tc2_steady", (5,)),
     "tc7_era_january_T213.nc": ("tc7_era_january", (0, 1, 2, 3, 4, 5)),
+    "tc7_era_january_T341.nc": ("tc7_era_january", (0, 1, 2, 3, 4, 5)),  # case 7's default: its start and scored days
 }
 
 

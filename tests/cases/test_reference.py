@@ -225,11 +225,12 @@ def test_stored_days():
 
 
 def test_bundled_files_are_float32_coefficients_within_the_size_budget():
-    """float32 coefficients (6e-8, far below any model error they score), about 15 MB in all."""
+    """float32 coefficients (6e-8, far below any model error they score), about 21 MB in all (case
+    7's T341 run, its default reference, 6.1 MB of it: issue 127 keeps the repository under 40 MiB)."""
     folder = find_reference("tc5_mountain").parent
     files = sorted(folder.glob("*.nc"))
-    assert len(files) == 9
-    assert sum(f.stat().st_size for f in files) < 16e6
+    assert len(files) == 10
+    assert sum(f.stat().st_size for f in files) < 22e6
     for f in files:
         with xr.open_dataset(f, decode_times=False) as ds:
             assert all(

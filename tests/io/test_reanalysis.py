@@ -390,13 +390,19 @@ def test_a_run_says_and_records_what_it_read(capsys, tmp_path, monkeypatch):
 
 
 def test_case_7_starts_from_its_reference_and_is_scored_against_it(capsys, tmp_path, monkeypatch):
-    """tc7_era_january at ne 2: the day-0 state is T213's (its error 0 to round-off), the day-1
-    error against T213 finite and that of a coarse grid (1e-3 to 1e-2 in h + hs)."""
+    """tc7_era_january at ne 2: scored against T341 by default (issue 127, item 3), whose day 0
+    is its start (its error 0 to round-off), the day-1 error that of a coarse grid (1e-3 to 1e-2
+    in h + hs); T213 on asking (``case.reference``), whose own day 0 is not quite T341's (the two
+    references' starts: 7.9e-8 in h + hs)."""
     import swe_sphere
 
     ds = swe_sphere.run("tc7_era_january", ne=2, days=1, device="cpu")
+    assert ds.attrs["reference"] == "tc7_era_january_T341.nc"
     first, day1 = ds.ref_l2_h_surface.values[0], ds.ref_l2_h_surface.sel(time=1).item()
     assert first < 1e-12 and 1e-3 < day1 < 1e-2, (first, day1)
+    t213 = swe_sphere.run("tc7_era_january", ne=2, days=1, device="cpu", case={"reference": "T213"})
+    assert t213.attrs["reference"] == "tc7_era_january_T213.nc"
+    assert 1e-8 < t213.ref_l2_h_surface.values[0] < 1e-7 and 1e-3 < t213.ref_l2_h_surface.sel(time=1).item() < 1e-2
 
 
 def test_a_missing_initial_file_and_a_bad_truncation(tmp_path):
@@ -415,7 +421,7 @@ def test_a_missing_initial_file_and_a_bad_truncation(tmp_path):
 
 def test_case_7_in_the_studies(capsys, tmp_path, monkeypatch):
     """``sweep`` takes tc7_era_january as any case (ne 2, one day): its runs scored against the
-    case's T213 file (total error in h + hs of a coarse grid, 6e-3)."""
+    case's T341 file (total error in h + hs of a coarse grid, 6e-3)."""
     import pandas as pd
 
     monkeypatch.chdir(tmp_path)
@@ -423,7 +429,7 @@ def test_case_7_in_the_studies(capsys, tmp_path, monkeypatch):
     code, _, err = cli_main(capsys, *args, "--device", "cpu", "--output", "sw")
     assert code == 0, err
     sweep = pd.read_csv("sw/sweep.csv")
-    assert set(sweep.reference) == {"tc7_era_january_T213.nc"}
+    assert set(sweep.reference) == {"tc7_era_january_T341.nc"}
     assert np.all((4e-3 < sweep.total_error) & (sweep.total_error < 1e-2)), sweep.total_error
 
 

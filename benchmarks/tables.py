@@ -33,6 +33,7 @@ ROOMS = {
     "micro": "Micro: memory, ensembles, gradients, meshes, precision, a run's cost outside its steps",
     "micro/step": "Micro: the RHS and the step (throughput, rooflines, parts, DSS, ∇⁴)",
     "archive": "Archive: what a replaced path justified (kept runnable, not kept current)",
+    "regressions": "Regressions: the asv suite (run by asv on each commit: `compare.py`)",
     ".": "The suite's own modules and tools",
 }
 # a printed line that says how the run went, not what it measured
@@ -52,8 +53,8 @@ those files. A row holds the latest record of its script, no history: earlier fi
 `git show d6c19d2:benchmarks/README.md`. What accuracy costs is the documentation's explanation
 pages, which cite each figure's script and results file.
 
-Commits are compared by airspeed velocity (asv) on the suite in `asv/` (the default path's whole
-process, the RHS, a step, an ensemble step, a gradient): see "Regressions between commits" below.
+Commits are compared by airspeed velocity (asv) on the suite in `regressions/` (the default path's
+whole process, the RHS, a step, an ensemble step, a gradient): see "Regressions between commits".
 
 A script runs from the repository root (`python benchmarks/<room>/<script>.py --help`); bad input
 ends it as it ends the command line: one line naming the value, exit 2. CPU figures that repeat on a
@@ -64,12 +65,14 @@ script offers it); each row gives its load average.
 ASV = """\
 ## Regressions between commits
 
-`benchmarks/asv/` is an [asv](https://asv.readthedocs.io) suite over the public API, configured by
-`benchmarks/asv.conf.json`; each commit is built into an environment of its own (the machine's
-packages beside it). Two commits side by side, a change beyond the noise flagged:
+`benchmarks/regressions/` is an [asv](https://asv.readthedocs.io) suite over the public API,
+configured by `benchmarks/asv.conf.json`; each commit is built into an environment of its own (the
+machine's packages beside it). Two commits side by side, their rounds interleaved, a change beyond
+the factor that asv's statistics call real flagged, and the table kept as a results file
+(`results/compare/`, its row above):
 
-    asv continuous --config benchmarks/asv.conf.json --factor 1.1 d6c19d2 HEAD
-    asv run --config benchmarks/asv.conf.json --python=same --quick   # CI's form: the suite runs
+    python benchmarks/compare.py d6c19d2 HEAD --factor 1.1
+    SWE_SPHERE_ASV_QUICK=1 asv run --config benchmarks/asv.conf.json --python=same --quick   # CI's form
 """
 
 

@@ -14,6 +14,7 @@ import warp as wp
 from ..kernels import helmholtz as hk
 from ..kernels import helmholtz_cg as cgk
 from ..kernels import operators
+from .precision import rounded
 
 f64 = wp.float64
 
@@ -65,15 +66,13 @@ class HelmholtzCG:
         self.y = z(nu) if y is None else y
         self.wg, self.z = z(2, N), z(1, N)
         self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
-        # the metric in the solve's type: the model's own arrays in float64, float32 copies else
-        same = dtype is f64
-        cast = lambda a: a if same else wp.array(a.numpy(), dtype=dtype, device=dev)  # noqa: E731
-        self.Dinv, self.metdet = cast(model.operators.Dinv), cast(model.operators.metdet)
-        self.spheremp, self.rspheremp = (
-            cast(topo.spheremp[: topo.N]),
-            cast(topo.rspheremp),
-        )  # the local copies' masses (the ghosts' follow on a rank)
-        self.dvv = model.operators.dvv_rows if same else operators.dvv_matrix(model.topology.grid.rule.dvv, dtype)
+        # the metric in the solve's type (``precision.rounded``): the model's own arrays in float64,
+        # float32 copies rounded once else; the local copies' masses (the ghosts' follow on a rank)
+        self.Dinv, self.metdet = rounded(model.operators.Dinv, dtype), rounded(model.operators.metdet, dtype)
+        self.spheremp, self.rspheremp = rounded(topo.spheremp[: topo.N], dtype), rounded(topo.rspheremp, dtype)
+        self.dvv = (
+            model.operators.dvv_rows if dtype is f64 else operators.dvv_matrix(model.topology.grid.rule.dvv, dtype)
+        )
         self.minv = wp.array(1.0 / topo.area, dtype=dtype, device=dev)
         self.area, self.ones = wp.array(topo.area, dtype=dtype, device=dev), wp.ones(nu, dtype=dtype, device=dev)
         self.chunk = chunk = topo.backend.reduction_chunk(nu)

@@ -81,7 +81,7 @@ part_tests() {
     # (SWE_SPHERE_DEVICE=cuda: the device of every run that names none)
     run tests 420 "$PY" -m pytest -q -rs -p no:cacheprovider --junitxml="$OUT/tests.xml"
     run tests_first_runs 180 env SWE_SPHERE_DEVICE=cuda "$PY" -m pytest -q -rs -p no:cacheprovider \
-        tests/test_docs_examples.py tests/test_first_hour.py
+        tests/test_docs_examples.py tests/cli/test_run_names_and_locks.py
     if grep -q "SKIPPED.*needs a CUDA device" "$OUT/tests_graph_fallback.txt" "$OUT/tests.txt"; then
         echo "== tests: CUDA tests skipped on the GPU machine" | tee -a "$OUT/session.log"
     fi

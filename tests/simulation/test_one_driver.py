@@ -4,7 +4,6 @@ its control, its output times) and is bitwise the uninterrupted run (issue 117 i
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import netCDF4
@@ -12,7 +11,7 @@ import numpy as np
 import pytest
 
 from swe_sphere.core.errors import ArgumentError
-from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.ensemble import Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import TINY, cli_main, one_line
@@ -74,8 +73,7 @@ def test_an_s_ensemble_table_takes_the_member_count_of_members(capsys):
 
 def test_one_driver_for_one_member_and_many():
     """``Simulation(scene, members=N)`` is the ensemble: member k the bits of the single run;
-    ``advance`` and ``add_callback`` the same for one and many; the old class a subclass whose old
-    names warn in one line."""
+    ``advance`` and ``add_callback`` the same for one and many (the old class: tests/ensemble)."""
     many = Simulation("galewsky", "cpu", members=2, initial=Perturbation(1.0, seed=2), progress=False, **SMALL)
     starts = many.states()
     seen = []
@@ -85,19 +83,13 @@ def test_one_driver_for_one_member_and_many():
     one.advance(4 * 900 / 86400)
     assert many.step == one.step == 4 and seen == [2, 4] and len(many.members) == 2 and len(one.members) == 1
     assert np.array_equal(many.states()[1], one.states()[0])
-    with pytest.warns(DeprecationWarning, match=r"^swe_sphere.Ensemble is deprecated"):
-        ens = Ensemble("galewsky", 2, Perturbation(1.0, seed=2), device="cpu", **SMALL)
-    with pytest.warns(DeprecationWarning, match=r"^Ensemble.step_count is deprecated: step$"):
-        assert ens.step_count == 0
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        assert isinstance(ens, Simulation) and ens.time == 0.0 and ens.states().shape == starts.shape
     with pytest.raises(ArgumentError, match=r"^states must have shape \(1, 3, 384\) \(got \(2, 3, 384\)\)$"):
         one.set_states(starts)  # a single run is one member: (1, 3, n)
     one.set_states(starts[1:])
     assert np.array_equal(one.states(), starts[1:])
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 @pytest.mark.parametrize("stepper", ["kgu35", "leapfrog"])
 def test_members_in_turn_fit_their_own_dt_alike(stepper):
     """Fitting Δt to ``advance``'s interval (the running policy's, ``FixedDt.fitted``) set it on
@@ -115,6 +107,7 @@ def test_members_in_turn_fit_their_own_dt_alike(stepper):
         np.testing.assert_array_equal(state, one.states()[0])
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_dropped_members_invariants_and_errors_are_nan_as_its_state():
     """``blow_up="drop"``: ``invariants()`` took a dropped member's from its frozen, blown-up state
     (finite numbers) where ``states()`` and ``errors()`` gave NaN. Now every per-member figure of a

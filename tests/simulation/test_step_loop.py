@@ -57,19 +57,14 @@ def test_advance_past_the_end_lengthens_the_run():
 
 
 def test_a_run_at_its_end_is_refused_before_a_file_of_no_time(tmp_path):
-    """``run`` after ``advance`` to the end (a Simulation's, or past an Ensemble's): one line,
-    no file (each wrote a run file with no time and said nothing)."""
+    """``run`` after ``advance`` to the end: one line, no file (it wrote a run file with no time
+    and said nothing; the deprecated ``Ensemble``'s, tests/ensemble)."""
     from swe_sphere.core.errors import ArgumentError
-    from swe_sphere.ensemble import Ensemble
 
     s = sim()
     s.advance(days=0.375)
     with pytest.raises(ArgumentError, match=r"^Simulation\.run: at step 18 \(day 0\.375\) the run is at its end"):
         s.run(tmp_path / "a.nc")
-    ens = Ensemble("tc2_steady_alpha_pi4", 2, device="cpu", **KW)
-    ens.advance(0.5)
-    with pytest.raises(ArgumentError, match=r"^Ensemble\.run: at step 24 \(day 0\.5\) the run is at its end"):
-        ens.run(tmp_path / "b.nc")
     assert not list(tmp_path.iterdir())
 
 

@@ -76,7 +76,7 @@ def test_a_series_written_over_another_is_drawn_once_as_a_fresh_plot_draws_it(ru
     assert len(drawn) == 2 and len(set(map(id, drawn))) == 2  # the map and the series, once each
     assert (out / "tc5_series.png").read_bytes() == (fresh / "tc5_series.png").read_bytes()
     # another field into the folder (no --overwrite): the same series kept as it is, byte for byte
-    # (tests/test_messages.py's plot --diff after a plot, the other way in)
+    # (tests/cli/test_messages.py's plot --diff after a plot, the other way in)
     code, _, err = cli_main(capsys, "plot", run_file, "--field", "u", "--output", out)
     assert code == 0, err
     assert sorted(p.name for p in out.iterdir()) == ["tc5_h_surface_day1.png", "tc5_series.png", "tc5_u_day1.png"]

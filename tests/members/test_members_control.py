@@ -9,7 +9,7 @@ import xarray as xr
 
 from swe_sphere.cli import main
 from swe_sphere.core.errors import ArgumentError, SceneError
-from swe_sphere.ensemble import Ensemble, Perturbation
+from swe_sphere.ensemble import Perturbation
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import members_from_checkpoint, members_run, take_steps
@@ -33,14 +33,12 @@ def test_one_member_under_error_control_is_the_single_run(tmp_path, one_thread):
 
 def test_members_take_one_controlled_dt_and_advance_lands_on_the_day(one_thread):
     """Two perturbed members: each accepted Δt is every member's (one history), ``advance``
-    lands on the day asked, ``step`` (a fixed Δt's) is refused in one line; the error norm's
+    lands on the day asked (the old ``Ensemble.step``'s refusal: tests/ensemble); the error norm's
     tolerance tighter, more steps."""
     ens = members_run("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED)
     ens.advance(0.1)
     assert ens.time == 0.1 and ens.control.accepted == ens.step > 2
     assert np.isfinite(ens.states()).all() and not np.array_equal(*ens.states())
-    with pytest.warns(DeprecationWarning), pytest.raises(ArgumentError, match=r"^Ensemble.step takes steps of a fixed"):
-        Ensemble("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED).step(1)  # the old name's
     tight = members_run("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED, **{"time.rtol": 1e-5})
     tight.advance(0.1)
     assert tight.control.accepted > ens.control.accepted

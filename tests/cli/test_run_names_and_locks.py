@@ -1,5 +1,6 @@
-"""A new user's first hour on a fresh clone, as the user meets it: exit 2 and one line
-naming the field, value or file for bad input, nothing made before the refusal."""
+"""``swe-sphere run`` and the commands around it as a new user meets them on a fresh clone (the first
+hour's first pass): run files and their locks, the device, default run names, read-only folders;
+exit 2 and one line naming the field, value or file for bad input, nothing made before the refusal."""
 
 from __future__ import annotations
 
@@ -275,11 +276,11 @@ README_OUTPUTS = (  # what the README's commands write in a clone's top folder
 )
 
 
-@pytest.mark.skipif(not (Path(__file__).parents[1] / ".git").exists(), reason="not a git checkout")
+@pytest.mark.skipif(not (Path(__file__).parents[2] / ".git").exists(), reason="not a git checkout")
 def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
     import subprocess
 
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     proc = subprocess.run(
         ["git", "-C", str(root), "check-ignore", "--no-index", *README_OUTPUTS], capture_output=True, text=True
     )

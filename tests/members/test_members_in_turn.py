@@ -127,6 +127,7 @@ def test_states_set_between_steps_go_on_as_an_ensemble_started_from_them(layout)
     assert same_bits(ens.states(), before)
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_blow_up_in_turn_names_the_member_and_keeps_the_others():
     """In turn, one member's blow-up stops all at the step it happened, naming it (policy: stop
     all); the other members' states are finite there."""
@@ -152,6 +153,7 @@ def test_the_tensor_hyperviscosity_s_members_step_in_turn_with_their_single_runs
         assert same_bits(ens.states()[k], sim.x.numpy()), k
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_member_that_blows_up_is_dropped_and_the_others_go_on(tmp_path):
     """``blow_up="drop"`` (in turn): member 1 blows up and is dropped at the step it did, named in
     one line; members 0 and 2 go on to the end with their single runs' bits; the run file has
@@ -197,6 +199,7 @@ def test_a_member_that_blows_up_is_dropped_and_the_others_go_on(tmp_path):
         members_run("tc2_steady", 3, good, blow_up="skip", **kw)
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_drop_run_stopped_when_none_is_left_keeps_its_dropped_members(tmp_path):
     """``blow_up="drop"`` with every member blowing up in turn: the run stops at the last one
     (``BlowUp``, "none left"), its file closed through the run's wrapper (``simulation.loop.integrate``)

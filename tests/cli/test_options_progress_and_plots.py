@@ -1,6 +1,6 @@
-"""A new user's first hour, a fourth pass (issue 102): ensembles that say what they are, values
-replaced by an option still checked, ``load_scene`` taking what ``run`` takes, and the header
-naming the case as run. Each refusal is one line, exit 2, made before anything is written."""
+"""The command line's options and what it prints (the first hour's fourth pass, issue 102): values
+replaced by an option still checked, ``load_scene`` taking what ``run`` takes, the header naming
+the case as run, ensembles that say what they are, progress lines off a terminal, ``plot --animate``. Each refusal is one line, exit 2, made before anything is written."""
 
 from __future__ import annotations
 
@@ -366,7 +366,7 @@ def test_plot_width_sizes_a_map(capsys, three_times):
 
 def test_the_readmes_picture_is_small_and_named_by_its_command():
     """The README opens with Galewsky's day-6 vorticity, made by the command it gives, under 200 kB."""
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     readme = (repo / "README.md").read_text()
     picture = repo / "docs" / "galewsky_vorticity_day6_lat0to90.png"
     assert readme.index("![") < readme.index("## What it is")

@@ -1,4 +1,5 @@
-"""A new user's first hour, a fifth pass (issue 117): the newest features' edges. Each refusal is
+"""The newest options' edges (the first hour's fifth pass, issue 117): intervals of 1e308 and
+5e-324 days, ensemble degrees, ``plot --animate`` to a file, the ∇⁴'s every, interrupts in plot. Each refusal is
 one line, exit 2, made before anything is written."""
 
 from __future__ import annotations

@@ -156,6 +156,7 @@ def test_the_command_line_runs_an_ensemble_with_its_streams(capsys, tmp_path):
     assert np.array_equal(h[-1], read(out, "h")[0][-1])
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_blow_up_keeps_the_good_output_times(tmp_path):
     good = members_run("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
     good[2, :2] *= 8  # unstable at this dt within a few steps (test_ensemble)
@@ -214,6 +215,7 @@ def test_a_signal_stops_after_a_block_with_its_restart_file(tmp_path):
     assert np.array_equal(rest.states(), whole.states())
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_restart_file_is_continued_by_its_own_kind(tmp_path):
     ens = members_run("galewsky", 2, device="cpu", **SMALL)
     take_steps(ens, 4)
@@ -430,6 +432,7 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
         assert code == 2 and says in err and not (tmp_path / "c.nc").exists()
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_run_refuses_what_would_replace_its_inputs_or_its_own_names(tmp_path):
     """As a run's (``simulation.loop.check_run_files``): an output that is the scene file, even
     with ``overwrite``, is refused in one line and the file is left as it was; an activity under a

@@ -18,7 +18,7 @@ from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
 
 TINY = ("--ne", "2", "--np", "4", "--device", "cpu", "--no-progress")
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def one_line(capsys, argv, *words):

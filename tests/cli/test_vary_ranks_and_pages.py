@@ -1,5 +1,6 @@
-"""A new user's first hour, a sixth pass (issue 117, items 5 and 14): a refusal is one line, exit
-2, made before anything is written; a command under mpiexec writes its files once."""
+"""``--vary`` twice, a serial command under mpiexec, the time left past the first step's compiling,
+the efficiency page (the first hour's sixth pass, issue 117 items 5 and 14): a refusal is one line,
+exit 2, made before anything is written; a command under mpiexec writes its files once."""
 
 from __future__ import annotations
 
@@ -68,7 +69,7 @@ def test_the_time_left_is_not_paced_by_the_first_step_s_compiling(monkeypatch):
     assert lines[1:] == ["day 0.01 of 1 (1 %), step 1, 13 s of wall time"]
 
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 
 def _reached(page: Path) -> set[Path]:

@@ -21,7 +21,7 @@ from meshes import refined_ne4
 # one worker runs the MPI tests one after another: each starts up to 4 ranks on this
 # machine, and two such jobs at once would share its CPUs with each other as well
 pytestmark = pytest.mark.xdist_group("mpi")
-MESH_SCRIPT = str(Path(__file__).with_name("mpi_mesh.py"))
+MESH_SCRIPT = str(Path(__file__).parents[1] / "mpi_mesh.py")
 
 
 def mesh_file_args(folder: Path) -> list[str]:

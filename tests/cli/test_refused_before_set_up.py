@@ -1,5 +1,5 @@
-"""A new user's first hour, again (issue 84): inputs that hung, were slow to refuse or passed
-silently, and docs that contradicted the commands. Each refusal is one line, exit 2 (3 for
+"""Commands' inputs that hung, were slow to refuse or passed silently (the first hour's second
+pass, issue 84): remap sizes, output intervals, sweep multiples, frontier targets, the summary's words. Each refusal is one line, exit 2 (3 for
 memory), made before any work."""
 
 from __future__ import annotations

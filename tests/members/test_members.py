@@ -101,6 +101,7 @@ def test_bad_input_names_the_argument(members, initial, named):
         members_run("galewsky", members, initial, device="cpu", **SMALL)
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_bad_perturbation_and_scene_are_refused():
     with pytest.raises(ArgumentError, match="amplitude"):
         Perturbation(-1.0)
@@ -136,6 +137,7 @@ def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():
             Perturbation(1.0, degrees=bad)
 
 
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_blow_up_names_the_member():
     good = members_run("tc2_steady", 3, device="cpu", ne=2, np=4, stepper="rk4", dt=1800.0).states()
     good[2, :2] *= 8  # a wind 8 times the steady one: unstable at this dt within a few steps

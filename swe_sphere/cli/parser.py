@@ -167,6 +167,34 @@ def _member_starts(p, sweep: bool) -> None:
     )
 
 
+def _run_members(r) -> None:
+    """``run``'s options of an ensemble: ``--members``, the members' starts, ``--blow-up``, ``--layout``."""
+    r.add_argument(
+        "--members",
+        type=int,
+        metavar="N",
+        help="an ensemble: N members of the scene advanced together (any stepper; under step control one dt for "
+        "every member), in the same launches "
+        "on CUDA for an explicit stepper, else each on a model of its own in turn (--layout); one run file with "
+        "a member dimension, each field's ensemble mean and spread; give the members their starts (--perturbation, "
+        "--vary or --initial), else they are alike",
+    )
+    _member_starts(r, sweep=False)
+    r.add_argument(
+        "--blow-up",
+        choices=("stop", "drop"),
+        help="with --members: a member's blow-up stops every member (stop: the default) or drops it, the "
+        "others going on (drop: its fields NaN from then on; the members in turn)",
+    )
+    r.add_argument(
+        "--layout",
+        choices=("shared", "in_turn"),
+        help="with --members: the members in the same launches (shared: the default on CUDA) or each on a "
+        "model of its own (in_turn: the default on a CPU, and for any stepper but an explicit one or members "
+        "whose g or nu differ)",
+    )
+
+
 def _run(sub, parents) -> None:
     r = sub.add_parser("run", help="run a scene (a TOML file under testcases/, or its name)", parents=parents)
     r.add_argument(
@@ -236,30 +264,7 @@ def _run(sub, parents) -> None:
         help="leave the GLL control volumes (cell bounds, the UGRID dual mesh) out of the run file: "
         "the scene's output.cells = false",
     )
-    r.add_argument(
-        "--members",
-        type=int,
-        metavar="N",
-        help="an ensemble: N members of the scene advanced together (any stepper; under step control one dt for "
-        "every member), in the same launches "
-        "on CUDA for an explicit stepper, else each on a model of its own in turn (--layout); one run file with "
-        "a member dimension, each field's ensemble mean and spread; give the members their starts (--perturbation, "
-        "--vary or --initial), else they are alike",
-    )
-    _member_starts(r, sweep=False)
-    r.add_argument(
-        "--blow-up",
-        choices=("stop", "drop"),
-        help="with --members: a member's blow-up stops every member (stop: the default) or drops it, the "
-        "others going on (drop: its fields NaN from then on; the members in turn)",
-    )
-    r.add_argument(
-        "--layout",
-        choices=("shared", "in_turn"),
-        help="with --members: the members in the same launches (shared: the default on CUDA) or each on a "
-        "model of its own (in_turn: the default on a CPU, and for any stepper but an explicit one or members "
-        "whose g or nu differ)",
-    )
+    _run_members(r)
     r.add_argument(
         "--graphs",
         help="steps as captured graphs: auto (on CUDA; the default, or env SWE_SPHERE_GRAPHS), on "

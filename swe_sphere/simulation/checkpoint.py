@@ -6,8 +6,8 @@ other runs (``branch``: ``swe-sphere run --continue R --stepper S --dt DT``, ``s
 
 A simulation's restarts: continued from a restart file, bitwise as if never stopped, or
 branched from it (another stepper or Δt); its state and history restored; a restart file
-written: ``continued`` (what ``Simulation.from_checkpoint`` builds from), ``restore_run`` and
-``write_restart``, functions of the run state and arrays they are given.
+written: ``from_checkpoint`` (``Simulation.from_checkpoint``, from what ``continued`` reads),
+``restore_run`` and ``write_restart``, functions of the run state and arrays they are given.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from ..core.arguments import path_argument
 from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
 from ..io import restart_file
+from ..members.initial import Variants
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
 
@@ -176,3 +177,86 @@ def write_restart(path, run, x, state: dict, initial: dict, grid, **kept) -> Pat
     return restart_file.write(
         path, run.scene, run.step, x, state, run.counters, initial, grid=grid, control=control, **kept
     )
+
+
+def member_starts(ck) -> tuple:
+    """(states (N, 3, n), or the file's ``Variants``) an ensemble's checkpoint ``ck`` starts its
+    members from, and its layout and blow-up policy, as ``Members`` takes them."""
+    variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
+    start = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else Variants(variants)
+    return start, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
+
+
+def from_checkpoint(
+    cls,
+    checkpoint,
+    device: str | None = None,
+    *,
+    days: float | None = None,
+    stepper: str | None = None,
+    dt: float | None = None,
+    progress: bool = True,
+    comm=None,
+    graphs: str | bool | None = None,
+    members: bool = False,
+    per_element: bool | None = None,
+    threads: int | None = None,
+):
+    """A simulation that continues a restart file, bitwise as if never stopped.
+
+    With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
+    (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
+    history dropped (multistep steppers start as at t = 0), its counters from zero
+    and its invariants' changes against that state, steps counted from the
+    checkpoint's day (a single run's file alone).
+
+    Parameters
+    ----------
+    checkpoint : str, path or checkpoint.Checkpoint
+        The restart file (read on rank 0 only, ``checkpoint.read_on_root``; an ensemble's on
+        every rank, each stepping its members).
+    device : {"cpu", "cuda"}, optional
+        Warp device.
+    days : float, optional
+        The new last model day, from t = 0 (default: the checkpointed scene's).
+    stepper : str, optional
+        Another stepper: a branch.
+    dt : float, optional
+        Another time step (s): a branch.
+    members : bool
+        The file is an ensemble's (its members, layout, blow-up policy and variants the
+        file's); False: a single run's.
+    progress, comm, graphs, per_element, threads
+        As for the constructor.
+
+    Returns
+    -------
+    Simulation
+        At the checkpoint's step, its restart interval (``restart_every``) the file's.
+
+    Raises
+    ------
+    CheckpointError
+        ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
+        one of the other kind (``members``), or a ``days`` before its step.
+    SceneError
+        A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps), or any
+        branch of an ensemble's file (``members``: it continues with its own stepper and dt,
+        as ``swe-sphere run --continue`` refuses ``--stepper`` and ``--dt`` for it).
+    """
+    ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm, members=members)
+    kw = {"progress": progress, "comm": comm, "graphs": graphs}
+    if members:
+        states, layout, policy = member_starts(ck)
+        both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
+        sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
+        sim.restore_history(ck)
+    else:
+        sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
+        if whole:  # a continuation: the stepper's history, the counters and the step control as they were
+            sim.restore_history(ck)
+    if whole:
+        sim.restart_every = ck.restart_every  # the interval it wrote restart files at, kept
+    if not isinstance(checkpoint, Checkpoint):
+        sim.inputs = (Path(checkpoint),)
+    return sim

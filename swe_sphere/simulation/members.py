@@ -301,11 +301,3 @@ class Members(MemberAxis):
             **({"continued_from_day": self.run.time} if self.run.step else {}),
         }
         return {}, first, attrs, {"members": self.members, "member_series": files.member_series}
-
-
-def member_starts(ck) -> tuple:
-    """(states (N, 3, n), or the file's ``Variants``) an ensemble's checkpoint ``ck`` starts its
-    members from, and its layout and blow-up policy, as ``Members`` takes them."""
-    variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
-    start = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else initial.Variants(variants)
-    return start, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")

@@ -41,11 +41,11 @@ from ..members.units import member_step
 from . import checkpoint as ckpt
 from .activities import add_callback, log_activity
 from .build import ON_ROOT, build
-from .checkpoint import Checkpoint, continued, restore_run, write_restart
+from .checkpoint import restore_run, write_restart
 from .guard import RunObserver
 from .intervals import Intervals
 from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
-from .members import Members, member_starts
+from .members import Members
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
 from .state_diagnostics import MemberAxis, StateDiagnostics
@@ -338,80 +338,7 @@ class Simulation:
         self.run_state.initial = m.diagnose(scene.start_day * DAY)  # each member's t = 0 diagnostics, (N,) by name
 
     # -- restarts and branches (``checkpoint``)
-    @classmethod
-    def from_checkpoint(
-        cls,
-        checkpoint,
-        device: str | None = None,
-        *,
-        days: float | None = None,
-        stepper: str | None = None,
-        dt: float | None = None,
-        progress: bool = True,
-        comm=None,
-        graphs: str | bool | None = None,
-        members: bool = False,
-        per_element: bool | None = None,
-        threads: int | None = None,
-    ):
-        """A simulation that continues a restart file, bitwise as if never stopped.
-
-        With another ``stepper`` or ``dt`` than the checkpoint's it is a branch
-        (``checkpoint.branch``): a new run from the checkpoint's state, its stepper's
-        history dropped (multistep steppers start as at t = 0), its counters from zero
-        and its invariants' changes against that state, steps counted from the
-        checkpoint's day (a single run's file alone).
-
-        Parameters
-        ----------
-        checkpoint : str, path or checkpoint.Checkpoint
-            The restart file (read on rank 0 only, ``checkpoint.read_on_root``; an ensemble's on
-            every rank, each stepping its members).
-        device : {"cpu", "cuda"}, optional
-            Warp device.
-        days : float, optional
-            The new last model day, from t = 0 (default: the checkpointed scene's).
-        stepper : str, optional
-            Another stepper: a branch.
-        dt : float, optional
-            Another time step (s): a branch.
-        members : bool
-            The file is an ensemble's (its members, layout, blow-up policy and variants the
-            file's); False: a single run's.
-        progress, comm, graphs, per_element, threads
-            As for the constructor.
-
-        Returns
-        -------
-        Simulation
-            At the checkpoint's step, its restart interval (``restart_every``) the file's.
-
-        Raises
-        ------
-        CheckpointError
-            ``checkpoint`` not a path or a ``Checkpoint``, an unreadable or damaged restart file,
-            one of the other kind (``members``), or a ``days`` before its step.
-        SceneError
-            A branch it cannot make (unknown stepper, dt <= 0, a length not whole steps), or any
-            branch of an ensemble's file (``members``: it continues with its own stepper and dt,
-            as ``swe-sphere run --continue`` refuses ``--stepper`` and ``--dt`` for it).
-        """
-        ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm, members=members)
-        kw = {"progress": progress, "comm": comm, "graphs": graphs}
-        if members:
-            states, layout, policy = member_starts(ck)
-            both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
-            sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
-            sim.restore_history(ck)
-        else:
-            sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
-            if whole:  # a continuation: the stepper's history, the counters and the step control as they were
-                sim.restore_history(ck)
-        if whole:
-            sim.restart_every = ck.restart_every  # the interval it wrote restart files at, kept
-        if not isinstance(checkpoint, Checkpoint):
-            sim.inputs = (Path(checkpoint),)
-        return sim
+    from_checkpoint = classmethod(ckpt.from_checkpoint)
 
     # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
     scene = forwarded("run_state.scene", "The ``Scene`` run (resolved; a fitted Δt or a lengthened run replace it).")

@@ -128,7 +128,7 @@ def test_members_help_says_any_stepper_and_in_turn(capsys):
     code, out, _ = cli_main(capsys, "run", "--help")
     text = " ".join(out.split())
     assert code == 0 and "explicit steppers, fixed dt" not in text
-    assert "(any stepper, fixed dt), in the same launches on CUDA for an explicit stepper, else each" in text
+    assert "(any stepper; under step control one dt for every member), in the same launches on CUDA for an" in text
     assert "own in turn (--layout)" in text
     code, out, _ = cli_main(
         capsys, *RUN, "--days", "0.05", "--stepper", "imex", "--members", "2", "--perturbation", "1"

@@ -159,6 +159,7 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
     figures: dict = {}
     load_start = os.getloadavg()
     started = datetime.datetime.now(datetime.UTC)
+    tree = commit()  # at the start: the tree that ran (a checkout may move during a long run)
     tee = _Tee(sys.stdout)
     with contextlib.redirect_stdout(tee):
         yield figures
@@ -167,7 +168,7 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
         "command": " ".join(["python", str(Path(script).resolve().relative_to(HERE.parent)), *sys.argv[1:]]),
         "date": started.isoformat(timespec="seconds"),
         "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": platform.platform()},
-        **commit(),
+        **tree,
         "load_average": {"start": [round(x, 2) for x in load_start], "end": [round(x, 2) for x in os.getloadavg()]},
         "figures": figures,
         "printed": tee.kept.getvalue().splitlines(),

@@ -29,6 +29,7 @@ ROOMS = {
     "the face map, MPI scaling, and the package's own study commands",
     "studies/control": "Studies: step control (error and CFL control, its cost)",
     "studies/lts": "Studies: local time stepping",
+    "studies/transport": "Studies: the tracers' transport tests (Lauritzen et al. 2012) beside HOMME's figures",
     "gpu": "GPU: the card script, its payload and the performance models ([GPU.md](gpu/GPU.md))",
     "micro": "Micro: memory, ensembles, gradients, meshes, precision, a run's cost outside its steps",
     "micro/step": "Micro: the RHS and the step (throughput, rooflines, parts, DSS, ∇⁴)",

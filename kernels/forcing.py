@@ -109,3 +109,49 @@ def translating_low(
 
 for _t in (f64, wp.float32):  # the tendency's float types
     wp.overload(translating_low, {"tend": wp.array2d(dtype=_t)})
+
+
+# k0 = κ a / T (m s⁻¹), 2π / T and π / T (s⁻¹): the deformational flow's (``deformational_flow``)
+DeformationalParams = wp.types.vector(length=3, dtype=f64)
+
+
+@wp.kernel
+def deformational_flow(
+    xyz: wp.array2d(dtype=f64),
+    east: wp.array2d(dtype=f64),
+    north: wp.array2d(dtype=f64),
+    c: DeformationalParams,
+    t: f64,
+    tend: wp.array2d(dtype=Any),
+    block: int,
+    offset: int,
+):
+    """tend[0:2, p] += ∂u/∂t, ∂v/∂t (m s⁻²) at time t (s) of Nair & Lauritzen (2010)'s
+    nondivergent deformational flow (their case 4; Lauritzen et al. 2012 §2.1; HOMME's
+    ``get_nondiv2d_uv``): with λ' = λ − 2πt/T,
+    u = k0 sin²λ' sin 2θ cos(πt/T) + u0 cos θ,  v = k0 sin 2λ' cos θ cos(πt/T),
+    so that a stepper's stages carry the prescribed wind in time (the case's continuity alone
+    moves h and the tracers); k0 = 0: solid-body rotation, whose wind does not change. Rows 2..
+    (h, the tracers) get nothing. ``block`` nodes a thread as ``translating_low``. Dim N/block."""
+    k0 = c[0]
+    omega = c[1]  # the background's rotation rate
+    rate = c[2]  # the deformation's reversal
+    ct = wp.cos(rate * t)
+    st = wp.sin(rate * t)
+    start = (wp.tid() + offset) * block
+    for p in range(start, start + block):
+        x, y, z = xyz[0, p], xyz[1, p], xyz[2, p]
+        cos_lat = wp.sqrt(x * x + y * y)
+        lam = wp.atan2(y, x) - omega * t
+        s1 = wp.sin(lam)
+        s2 = wp.sin(f64(2.0) * lam)
+        c2 = wp.cos(f64(2.0) * lam)
+        sin_2lat = f64(2.0) * z * cos_lat
+        du = -k0 * sin_2lat * (omega * s2 * ct + rate * s1 * s1 * st)
+        dv = -k0 * cos_lat * (f64(2.0) * omega * c2 * ct + rate * s2 * st)
+        tend[0, p] = tend[0, p] + type(tend[0, p])(du)
+        tend[1, p] = tend[1, p] + type(tend[1, p])(dv)
+
+
+for _t in (f64, wp.float32):  # the tendency's float types
+    wp.overload(deformational_flow, {"tend": wp.array2d(dtype=_t)})

@@ -139,6 +139,10 @@ KEYS = {
         'the tendency\'s floating-point type, "float64" or "float32" (the state float64 either way)',
     ),
     "tracers.names": ("none", "the tracers' names: distinct identifiers, each a variable of the run file (q, units 1)"),
+    "tracers.limiter": (
+        '"none"',
+        "the tracers' shape-preserving limiter: \"optimization\" (Guba et al. 2014, HOMME's limiter 8; one MPI rank)",
+    ),
     "tracers.initial": (
         "none",
         "each tracer's initial field, by name: constant, latitude, cosine_bells, gaussian_hills, slotted_cylinders, "

@@ -193,6 +193,8 @@ class TapedModel:
     def __init__(self, model: ShallowWater, tape: Tape):
         if model.filter is not None:  # its transpose is not built: a gradient would miss it
             raise ArgumentError("a gradient of a run with an element filter ([filter]) is not built: drop the filter")
+        if model.rows > 3:  # its tapes and costs are of u, v, h: the tracers' rows would go undifferentiated
+            raise ArgumentError("a gradient of a run with tracers ([tracers]) is not built: drop the tracers")
         self._model, self.tape = model, tape
         self.recorder = tape  # the operators built on this model write on it
         self.operators = _TapedOperators(model.operators, tape)

@@ -426,6 +426,53 @@ class Galewsky(Case):
         return self.jet(lat), np.zeros_like(lat), h
 
 
+@dataclass(frozen=True)
+class DeformationalFlow(Case):
+    """The transport tests' prescribed wind (Lauritzen, Skamarock, Prather & Taylor 2012, Geosci.
+    Model Dev. 5, 887, §2.1): Nair & Lauritzen (2010)'s nondivergent deformational flow (their
+    case 4), with λ' = λ − 2πt/T,
+
+        u = k0 sin²λ' sin 2θ cos(πt/T) + (2πa/T) cos θ,   v = k0 sin 2λ' cos θ cos(πt/T),
+
+    k0 = κ a / T, κ = ``kappa`` (10: HOMME's ``get_nondiv2d_uv``, whose swirl-test figures the
+    docs compare against; 0: solid-body rotation, Williamson's case 1 with α = 0 on a depth), T =
+    ``period_days``. Its depth h0 stays constant (the flow is nondivergent) and what it carries
+    is back where it started at t = T: the scene's [tracers] are scored there. The wind changes in
+    time by the "forcing" term (``kernels.forcing.deformational_flow``: ∂v/∂t, no forcing of h),
+    the continuity alone moving h and the tracers."""
+
+    required_terms = frozenset({"continuity", "forcing"})
+    exact_solution = True
+    kappa: float = 10.0
+    period_days: float = 12.0
+    h0: float = 1000.0
+
+    @property
+    def period(self) -> float:
+        return self.period_days * DAY
+
+    def forcing(self):
+        from ..kernels import forcing as forcing_kernels  # as ForcedLow's: Warp's import is a run's
+
+        a, T = self.planet.a, self.period
+        params = forcing_kernels.DeformationalParams(self.kappa * a / T, 2 * math.pi / T, math.pi / T)
+        return forcing_kernels.deformational_flow, params
+
+    def fcor(self, lat, lon):
+        return np.zeros_like(lat)  # no Coriolis term: the wind is prescribed
+
+    def initial(self, lat, lon):
+        return self.exact(lat, lon, 0.0)
+
+    def exact(self, lat, lon, t):
+        """(u, v, h0) at time t (s): the prescribed wind and the constant depth."""
+        a, T = self.planet.a, self.period
+        k0, shifted, ct = self.kappa * a / T, lon - 2 * math.pi * t / T, math.cos(math.pi * t / T)
+        u = k0 * np.sin(shifted) ** 2 * np.sin(2 * lat) * ct + 2 * math.pi * a / T * np.cos(lat)
+        v = k0 * np.sin(2 * shifted) * np.cos(lat) * ct
+        return u, v, np.full(np.shape(lat), self.h0)
+
+
 # name → (class, allowed parameters with their types)
 CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
@@ -437,6 +484,8 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc6_rossby_haurwitz": (RossbyHaurwitz, {}),
     # the jet's peak wind (m/s), the bump's height (m), latitude and longitude (rad)
     "galewsky": (Galewsky, {"perturbed": bool, "umax": float, "hhat": float, "lat2": float, "lon2": float}),
+    # κ of k0 = κ a / T (0: solid-body rotation), T (days), the constant depth (m)
+    "deformational_flow": (DeformationalFlow, {"kappa": float, "period_days": float, "h0": float}),
 }
 
 

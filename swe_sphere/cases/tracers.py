@@ -61,15 +61,16 @@ def gaussian_hills(lat, lon):
 
 def slotted_cylinders(lat, lon):
     """Lauritzen et al. 2012 eq. 13: 1 within r of a centre, 0.1 elsewhere, less a slot of width
-    r/6 (|λ − λ_i| < r/6) cut from the south edge of the first (θ − θ_1 < −5r/12) and from the
-    north edge of the second (θ − θ_2 > 5r/12): discontinuous."""
+    r/6 (|λ − λ_i| < r/6) open to the north in the first (all but θ − θ_1 < −5r/12, the bridge
+    left at its south edge) and to the south in the second (all but θ − θ_2 > 5r/12):
+    discontinuous."""
     lat, lon = np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)
     q = np.full(lat.shape, BACKGROUND)
     for i, centre in enumerate(CENTRES):
         lon_c, lat_c = centre
         inside = _distance(lat, lon, centre) <= RADIUS
         slot = np.abs(lon - lon_c) < RADIUS / 6
-        slot &= (lat - lat_c < -5 * RADIUS / 12) if i == 0 else (lat - lat_c > 5 * RADIUS / 12)
+        slot &= (lat - lat_c >= -5 * RADIUS / 12) if i == 0 else (lat - lat_c <= 5 * RADIUS / 12)
         q = np.where(inside & ~slot, 1.0, q)
     return q
 

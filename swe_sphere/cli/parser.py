@@ -281,8 +281,9 @@ def _plot(sub, parents) -> None:
     pl.add_argument(
         "--field",
         nargs="+",
-        choices=PLOT_FIELDS,
-        help="field(s) to map or zonally average (default h_surface = h + hs)",
+        metavar="FIELD",
+        help=f"field(s) to map or zonally average: {', '.join(PLOT_FIELDS)} or a passive tracer of the run "
+        "(its [tracers] names) (default h_surface = h + hs)",
     )
     pl.add_argument("--day", nargs="+", type=float, help="model day(s) to map, each an output time (default: the last)")
     pl.add_argument(

@@ -59,4 +59,5 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
         whole = lambda: CubedSphere(scene.ne, scene.np, case.planet.a, mesh=mesh)  # noqa: E731
         mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
         level = comm.bcast(mine, root=0)
-    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level)
+    # the halos carry a state's rows, a tracer's mass each among them
+    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level, rows=3 + len(scene.tracers))

@@ -24,6 +24,7 @@ from ..grid.quality import smallest_dx
 from ..io.initial_state import SCENE_CASES
 from ..io.run_file import OUTPUT_FIELDS
 from ..mesh.records import MeshFile, with_ne
+from ..model.limiter import LIMITERS
 from ..model.shallow_water import TERMS
 from ..steppers import STEPPERS
 from ..steppers.initialization import METHODS, DigitalFilter
@@ -388,6 +389,15 @@ def resolve_tracers(
     if why is not None:
         raise SceneError(f"[tracers] with stepper {stepper}: {why}; tracers run with the explicit Runge-Kutta steppers")
     return tuple(zip(names, initial, strict=True))
+
+
+def resolve_limiter(table: dict) -> str:
+    """``Scene.tracer_limiter`` of the [tracers] table: its ``limiter``, one of
+    ``model.limiter.LIMITERS`` ("none" by default). Raises ``SceneError`` naming the key."""
+    value = table.get("limiter", "none")
+    if value not in LIMITERS:
+        raise SceneError(f"tracers.limiter must be one of {', '.join(LIMITERS)} (got {got(value)})")
+    return value
 
 
 # the keywords of ``load_scene`` (``--ne``, ``--days``, ...) and the values they replace

@@ -100,6 +100,9 @@ class Scene:
     tracers : tuple of (str, str)
         [tracers]: each passive tracer's name and its bundled initial field
         (``cases.tracers.TRACER_FIELDS``), carried as hq in the state's rows 3..; (): none.
+    tracer_limiter : str
+        [tracers] limiter: "none" or "optimization", the tracers' shape-preserving limiter
+        (``model.limiter``: Guba et al. 2014, HOMME's limiter 8).
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -154,6 +157,7 @@ class Scene:
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
+    tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -280,6 +284,8 @@ class Scene:
             del d["precision"]
         if not d["tracers"]:  # none: a scene's dict as before the key
             del d["tracers"]
+        if d["tracer_limiter"] == "none":  # the default, likewise
+            del d["tracer_limiter"]
         return d
 
 

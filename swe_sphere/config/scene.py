@@ -63,7 +63,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       spectral references (the Earth's).
     [tracers]         names = ["dye"], initial = ["cosine_bells"]: passive tracers q carried as hq
                       by the depth's continuity (``cases.tracers.TRACER_FIELDS``: their
-                      initial fields; explicit Runge-Kutta steppers at a fixed dt)
+                      initial fields; explicit Runge-Kutta steppers at a fixed dt),
+                      limiter = "none" | "optimization" (Guba et al. 2014's, HOMME's limiter 8)
     [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
                       float32, the state and its accumulation float64; ``Scene.precision``):
                       refused with a stepper that differences the RHS
@@ -103,6 +104,7 @@ from .resolve import (
     resolve_ensemble,
     resolve_grid,
     resolve_initialization,
+    resolve_limiter,
     resolve_output_files,
     resolve_output_interval,
     resolve_planet,
@@ -318,6 +320,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
+        tracer_limiter=resolve_limiter(s.get("tracers", {})),
     )
     if t.case.case.notes():  # what the case read, said as the run's grid has it read (a reanalysis: its truncation)
         scene = dataclasses.replace(scene, notes=(*scene.make_case().notes(), *scene.notes))

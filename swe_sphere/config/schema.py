@@ -150,11 +150,9 @@ SCHEMA = {
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},
-    "numerics": {"precision": str},
-    "tracers": {
-        "names": list,
-        "initial": list,
-    },  # passive tracers and their bundled fields (``resolve_tracers``)  # "float64" or "float32": the tendency's (``resolve.resolve_precision``)
+    "numerics": {"precision": str},  # "float64" or "float32": the tendency's (``resolve.resolve_precision``)
+    # passive tracers: names, their bundled initial fields, the limiter (``resolve_tracers``, ``resolve_limiter``)
+    "tracers": {"names": list, "initial": list, "limiter": str},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }

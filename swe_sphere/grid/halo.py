@@ -33,9 +33,10 @@ class Halo:
     ``send_index_np``), ``send_ranges``/``recv_ranges`` (each neighbour's slice, in
     entries), ``size`` (entries received), the device buffers ``send_buffer`` and
     ``recv_buffer`` and their host twins ``host_send``/``host_recv`` (``Backend.host_buffer``),
-    each of up to ``MAX_ROWS`` float64 rows per entry, entry-major (``dss.pack``'s layout)."""
+    each of up to ``rows`` float64 rows per entry (``MAX_ROWS``, or a state's with its tracers'),
+    entry-major (``dss.pack``'s layout)."""
 
-    def __init__(self, neighbours, send: list, recv: list, backend: Backend):
+    def __init__(self, neighbours, send: list, recv: list, backend: Backend, rows: int = MAX_ROWS):
         self.neighbours = np.asarray(neighbours, dtype=np.int64)
         ends = np.cumsum([0, *map(len, send)]), np.cumsum([0, *map(len, recv)])
         self.send_ranges = list(zip(ends[0][:-1], ends[0][1:]))
@@ -44,7 +45,7 @@ class Halo:
         self.size = int(ends[1][-1])
         device = backend.device
         self.send_index = wp.array(self.send_index_np, dtype=wp.int32, device=device)
-        nsend, nrecv = max(1, self.send_index_np.size) * MAX_ROWS, max(1, self.size) * MAX_ROWS
+        nsend, nrecv = max(1, self.send_index_np.size) * rows, max(1, self.size) * rows
         self.send_buffer = wp.zeros(nsend, dtype=f64, device=device)
         self.recv_buffer = wp.zeros(nrecv, dtype=f64, device=device)
         staged = bool(len(self.neighbours))  # one process allocates no host buffers (page-locked memory is scarce)

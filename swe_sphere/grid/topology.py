@@ -72,15 +72,18 @@ def rank_parts(ne: int, size: int, mesh=None, level: np.ndarray | None = None) -
     return [np.sort(p) for p in (partition(ne, size) if ne else mesh_partition(mesh, size))]
 
 
-def on_ranks(ne: int, np_: int, radius: float, comm, backend: Backend, mesh=None, level=None) -> Topology:
+def on_ranks(
+    ne: int, np_: int, radius: float, comm, backend: Backend, mesh=None, level=None, rows: int = MAX_ROWS
+) -> Topology:
     """This rank's ``Topology`` of the grid (``ne``, ``np_``, ``radius`` m; ``mesh`` a ``Mesh``
     where ``ne`` is 0) split over ``comm``'s ranks (None: one process) by ``rank_parts``
     (``level``: an element's level, as there): its part of the elements as a ``CubedSphere``,
-    assembled with the others' (HOMME's ``prim_init1`` decomposition)."""
+    assembled with the others' (HOMME's ``prim_init1`` decomposition); ``rows`` the most rows an
+    exchange carries (``Topology``'s)."""
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     parts = rank_parts(ne, size, mesh, level)
     local = CubedSphere(ne, np_, radius, elements=parts[rank], mesh=mesh)  # this rank's only
-    return Topology(local, backend, backend.threads(), comm, parts=parts)
+    return Topology(local, backend, backend.threads(), comm, parts=parts, rows=rows)
 
 
 def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -103,6 +106,8 @@ class Topology(RankReductions):
     comm : an mpi4py communicator, or None (``SerialComm()``: all elements here).
         With several ranks, rank k holds chunk k of ``partition.partition``.
     parts : ``rank_parts(grid.ne, comm.size, grid.mesh)`` when the caller has it already.
+    rows : the most rows an exchange with the neighbours carries (at least ``halo.MAX_ROWS``, the
+        ∇⁴'s four; a state's 3 + K with K passive tracers): its halo buffers' size.
 
     Unique-node vectors (what the Krylov solvers iterate on) are distributed:
     a unique node belongs to the rank of its first copy in the grid's order,
@@ -141,11 +146,13 @@ class Topology(RankReductions):
     # with, and how tests/core/test_cuda_compile.py finds the DSS kernels CUDA launches)
     element_rows = True
 
-    def __init__(self, grid, device: str | Backend = "cpu", threads: int = 1, comm=None, parts=None):
+    def __init__(self, grid, device: str | Backend = "cpu", threads: int = 1, comm=None, parts=None, rows=MAX_ROWS):
         self.backend = device if isinstance(device, Backend) else Backend.of(device)
         self.device = device = self.backend.device  # the name
         self.threads = int(threads)
         self.comm = comm if comm is not None else SerialComm()
+        # the most rows an exchange carries: the ∇⁴'s four, or a state's with its tracers' masses
+        self.max_rows = max(MAX_ROWS, int(rows))
         self._sum, self._max, self._min = reduction_ops(self.comm)
         rank, size = self.comm.rank, self.comm.size
         self.distributed = size > 1
@@ -207,8 +214,8 @@ class Topology(RankReductions):
             into = np.unique(gid[owner == s])
             if out.size or into.size:
                 unique_nbrs.append(s), unique_send.append(np.searchsorted(owned_gid, out)), unique_recv.append(into)
-        self.copies = Halo(neighbours, send, recv, self.backend)
-        self.owned = Halo(unique_nbrs, unique_send, unique_recv, self.backend)
+        self.copies = Halo(neighbours, send, recv, self.backend, self.max_rows)
+        self.owned = Halo(unique_nbrs, unique_send, unique_recv, self.backend, self.max_rows)
         self.recv = np.concatenate(recv) if recv else np.zeros(0, dtype=np.int64)
         self._table = np.where(valid, _lookup(np.concatenate([grid.nodes, self.recv]), np.where(valid, table, -1)), -1)
         if np.any(valid & (self._table < 0)):
@@ -300,11 +307,11 @@ class Topology(RankReductions):
         if not len(halo.neighbours):
             return []
         rows = x.shape[0]
-        if rows > MAX_ROWS:
-            raise ValueError(f"an exchange of more than {MAX_ROWS} rows (got {rows})")
+        if rows > self.max_rows:
+            raise ValueError(f"an exchange of more than {self.max_rows} rows (got {rows})")
         exchange = halo.exchanges.get(rows)
         if exchange is None:
-            tag = rows if halo is self.copies else MAX_ROWS + rows
+            tag = rows if halo is self.copies else self.max_rows + rows
             exchange = halo.exchanges[rows] = Exchange(self.comm, halo, rows, tag, self.backend)
         if not halo.send_index_np.size:  # only receives from its neighbours
             return [exchange]

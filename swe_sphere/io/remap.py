@@ -37,7 +37,7 @@ from ..mesh.element_local import locate as locate_on_mesh
 from ..mesh.face_map import FACES
 from ..mesh.records import MeshFile, MeshRecord, from_json, mesh_of
 from .output_files import atomic_path, check_distinct
-from .run_file import element_mesh, history_line, member_statistics
+from .run_file import element_mesh, history_line, member_statistics, tracer_names
 
 #: node fields (time, ncol) or (ncol,) that ``remap_dataset`` carries to the lat-lon grid (an ensemble's
 #: (time, member, ncol) too, with their ``_mean`` and ``_spread``)
@@ -423,7 +423,8 @@ def _add_fields(out: xr.Dataset, ds: xr.Dataset, rm: Remapper) -> None:
     keep = ("units", "long_name", "standard_name", "cell_methods")
     if "member" in ds.variables:  # an ensemble's: its members, and each field's mean and spread
         out.coords["member"] = ds["member"]
-    for name in (*NODE_FIELDS, *(f"{n}_{view}" for n in NODE_FIELDS for view in MEMBER_VIEWS)):
+    fields = (*NODE_FIELDS, *tracer_names(ds))  # a run's passive tracers' q too
+    for name in (*fields, *(f"{n}_{view}" for n in NODE_FIELDS for view in MEMBER_VIEWS)):
         if name not in ds.variables:
             continue
         var = ds[name]

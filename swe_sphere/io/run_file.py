@@ -89,6 +89,15 @@ TIME_ATTRS = dict(
 COURANT_DT = "dt: the scene's; under step control the controller's at that time (the step it goes on with)"
 
 
+def tracer_names(ds) -> tuple:
+    """The passive tracers' names of a run file's Dataset ``ds`` (its scene's [tracers], from the
+    global attribute ``scene``): each a (time, ncol) variable of q; () for a run without them."""
+    try:
+        return tuple(name for name, _ in json.loads(ds.attrs["scene"]).get("tracers", ()))
+    except (KeyError, TypeError, ValueError):
+        return ()
+
+
 def tracer_attrs(name: str) -> dict:
     """The CF attributes of passive tracer ``name``'s node field: its mixing ratio q = hq / h."""
     return dict(units="1", long_name=f"mixing ratio of passive tracer {name} (its mass per unit depth, hq / h)")

@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 20 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 21 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -22,7 +22,8 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   arrays the element kernels read);
 - **where and what**: ``topology`` (device, N, grid, the DSS, reductions), ``launches`` (the
   ``LaunchRecorder`` every launch goes through, its threads and graph guard), ``terms`` (the
-  scene's terms: what F holds), ``rows`` (a state's: 3 and a tracer mass each), ``g`` (m s⁻²);
+  scene's terms: what F holds), ``rows`` (a state's: 3 and a tracer mass each), ``limiter`` (the
+  tracers' shape-preserving limiter, or None), ``g`` (m s⁻²);
 - **the recorder**: ``recorder``, None, or the tape a gradient injects (``adjoint.tape.TapedModel``)
   on which the operators built on the model (the gravity-wave operator, the Helmholtz solver)
   write their launches, so that they ask the model and not the adjoint.
@@ -47,6 +48,7 @@ class SteppingModel(Protocol):
     bad_nodes: object  # ``model.bad_nodes.BadNodes``
     terms: tuple
     rows: int  # a state's rows: u, v, h and a tracer mass hq each (3 + the model's tracers)
+    limiter: object  # ``model.limiter.TracerLimiter`` of the tracers, or None
     g: float
     recorder: object  # None, or a gradient's tape (``adjoint.tape.Tape``) the operators built on it write on
 

@@ -32,6 +32,7 @@ from .gravity_wave import GravityWaveOperator
 from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
+from .limiter import LIMITERS, TracerLimiter
 from .precision import TendencyArrays, precision_dtype, reference_depth
 
 TERMS = (
@@ -158,6 +159,9 @@ class ShallowWater:
         arithmetic (``kernels.tendencies``: ∂(hq)/∂t = −∇·(hq v)), so that q = 1 stays 1 and
         each tracer's mass ∫hq is conserved as h's; 0: the tendency kernels hold no tracer code.
         With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``).
+    limiter : "none" (default) or "optimization": the tracers' shape-preserving limiter
+        (``limiter.TracerLimiter``: Guba et al. 2014, HOMME's limiter 8), which a stepper applies
+        at the end of each step within the bounds of its start; one rank only.
 
     Raises
     ------
@@ -206,6 +210,7 @@ class ShallowWater:
         precision="float64",
         depth=None,
         tracers=0,
+        limiter="none",
     ):
         if not isinstance(grid, CubedSphere):
             raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
@@ -234,6 +239,8 @@ class ShallowWater:
         if tracers and "continuity" not in terms:
             raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
         self.tracers, self.rows = int(tracers), 3 + int(tracers)
+        if limiter not in LIMITERS:
+            raise ArgumentError(f"limiter must be one of {', '.join(LIMITERS)} (got {got(limiter)})")
         dtype = precision_dtype(precision)
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
@@ -266,6 +273,8 @@ class ShallowWater:
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
+        # the tracers' limiter (a scene's tracers.limiter); None: none
+        self.limiter = TracerLimiter(self) if self.tracers and limiter != "none" else None
 
     @functools.cached_property
     def tend(self) -> wp.array2d:
@@ -320,6 +329,7 @@ class ShallowWater:
         }
         options.setdefault("precision", scene.precision)
         options.setdefault("tracers", len(scene.tracers))
+        options.setdefault("limiter", scene.tracer_limiter)
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------

@@ -185,11 +185,16 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     def advance(self, x):
         if self._x is not x:
             self._record(x)
+        limiter = self.model.limiter  # the tracers' (a scene's tracers.limiter): the step's start's bounds
+        if limiter is not None:
+            limiter.bound(x)
         if self._carried is None:
             for c, arg, updates in self._stages:
                 self._at(c)
                 self.model.rhs_update(arg, updates)
             self._hyperviscosity(x)
+            if limiter is not None:
+                limiter.apply(x)
             return StepStats(len(self._stages))
         evals = len(self._stages)  # s − 1 stages; the FSAL evaluation after the ∇⁴ stands for the first
         (c0, arg0, first), *rest = self._stages

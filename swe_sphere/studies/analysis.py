@@ -24,7 +24,7 @@ from ..core.constants import EARTH
 from ..core.errors import SceneError
 from ..core.runtime import check_memory
 from ..io.remap import Remapper, latlon_grid, latlon_shape, open_netcdf, remap_bytes, run_grid
-from ..io.run_file import FIELDS
+from ..io.run_file import FIELDS, tracer_names
 
 # name → (long name, units on the colour bar, scale applied before drawing, colour map, symmetric about 0)
 MAP_FIELDS = {
@@ -36,6 +36,20 @@ MAP_FIELDS = {
     "vorticity": ("relative vorticity ζ", "10$^{-5}$ s$^{-1}$", 1e5, "RdBu_r", True),
     "divergence": ("divergence δ", "10$^{-6}$ s$^{-1}$", 1e6, "RdBu_r", True),
 }
+
+
+def map_field(field: str, ds=None) -> tuple:
+    """``MAP_FIELDS``' entry of ``field``, or a passive tracer's q of the run ``ds`` (its scene's
+    [tracers]; with ``ds`` None any other name is taken as one). ``SceneError`` naming the known
+    fields for another name."""
+    if field in MAP_FIELDS:
+        return MAP_FIELDS[field]
+    tracers = tracer_names(ds) if ds is not None else (field,)
+    if field not in tracers:
+        raise SceneError(f"unknown field {field!r} (known: {', '.join((*MAP_FIELDS, *tracers))})")
+    return (f"passive tracer {field} (mixing ratio q)", "1", 1.0, "viridis", False)
+
+
 DERIVED = ("vorticity", "divergence")  # stored by the model, NaN in files written before they were
 DAY_TOL = 1e-6  # days: an output time asked for matches a stored one this close
 
@@ -66,10 +80,10 @@ def time_index(ds, day: float) -> int:
 
 
 def field_at_nodes(ds, field: str, day: float) -> np.ndarray:
-    """``field`` (one of ``MAP_FIELDS``) of a run at ``day`` on its unique nodes (ncol,),
-    in the file's units (s⁻¹ for vorticity and divergence). ``ValueError`` if it cannot be had."""
-    if field not in MAP_FIELDS:
-        raise SceneError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
+    """``field`` (one of ``MAP_FIELDS`` or the run's tracers, ``map_field``) of a run at ``day`` on
+    its unique nodes (ncol,), in the file's units (s⁻¹ for vorticity and divergence). ``ValueError``
+    if it cannot be had."""
+    map_field(field, ds)
     it = time_index(ds, day)
 
     def get(name):

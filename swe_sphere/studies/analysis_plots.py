@@ -9,7 +9,7 @@ from pathlib import Path
 import xarray as xr
 
 from ..io.output_files import atomic_path, check_distinct, check_target
-from .analysis import MAP_FIELDS, field_at_nodes, kinetic_energy_spectrum, zonal_mean
+from .analysis import field_at_nodes, kinetic_energy_spectrum, map_field, zonal_mean
 from .figures import draw_lines, new_figure, save_png
 from .plotting import check_lat_range, check_outdir, check_view, days_to_plot, named_after, open_run, scene_label
 
@@ -48,7 +48,7 @@ def plot_zonal_mean(mean: xr.DataArray, path=None, lat_range=None, title: str = 
     fig = new_figure((8.0, 5.0))
     ax = fig.add_subplot()
     field = str(mean.name).removesuffix("_zonal_mean")
-    long_name, units, scale = MAP_FIELDS[field][:3]
+    long_name, units, scale = map_field(field)[:3]
     lines = [
         (f"day {day:g}", mean["lat"].values, mean.isel(time=it).values * scale)
         for it, day in enumerate(mean["time"].values)

@@ -15,13 +15,13 @@ from ..io.remap import run_grid
 from .analysis import days_of, field_at_nodes, time_index
 from .figures import new_figure
 from .plotting import (
-    MAP_FIELDS,
     band_rows,
     check_outdir,
     check_view,
     draw_map,
     figure_size,
     latitude_band,
+    map_field,
     named_after,
     open_run,
     plot_edges,
@@ -74,12 +74,11 @@ def animate_run(
 
     check_format(fmt)
     check_view(member, [field])
-    if field not in MAP_FIELDS:
-        raise ValueError(f"unknown field {field!r} (known: {', '.join(MAP_FIELDS)})")
     named = Path(outdir) if Path(outdir).suffix.lower() == f".{fmt}" and not Path(outdir).is_dir() else None
     outdir = check_outdir(outdir if named is None else named.parent, lat_range)
     ds = open_run(run_path, member)
     try:
+        long_name, units, scale, cmap, symmetric = map_field(field, ds)  # a run's tracers too
         grid = run_grid(ds)
         frames = [float(d) for d in (days_of(ds) if not days else days)]
         for day in frames:
@@ -92,7 +91,6 @@ def animate_run(
         check_distinct([path], [run_path])
         if outdir.is_dir():  # a folder still to be made holds none
             check_target(path, overwrite)
-        long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
         res = plot_resolution(grid)
         lat_e, lon_e = plot_edges(res)
         band = None

@@ -30,9 +30,9 @@ from ..io.run_file import member_statistics
 from .analysis import (
     DAY_TOL,
     DERIVED,
-    MAP_FIELDS,
     days_of,
     field_at_nodes,
+    map_field,
     run_name,
 )
 from .figures import DPI, draw_lines, new_figure, png_bytes, save_png
@@ -244,7 +244,7 @@ def plot_map(ds, field: str, day: float, path=None, diff=None, lat_range=None, w
     in file units; plus ``"l2"`` with diff. Raises ``ValueError`` (one line) for an
     unknown field, a day the run does not store, or a run file it cannot read."""
     grid = run_grid(ds)
-    long_name, units, scale, cmap, symmetric = MAP_FIELDS[field]
+    long_name, units, scale, cmap, symmetric = map_field(field, ds)
     nodes = field_at_nodes(ds, field, day)
     if diff is not None:
         diff.check(field, day)

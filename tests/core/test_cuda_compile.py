@@ -28,6 +28,7 @@ import warp as wp
 import swe_sphere
 import swe_sphere.kernels as kernels_pkg
 from swe_sphere.adjoint.gradient import step_adjoint
+from swe_sphere.cases.library import make_case
 from swe_sphere.config.scene import list_scenes, load_scene
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.topology import Topology
@@ -164,6 +165,17 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     model = ShallowWater.from_scene(tc5, grid, per_element=False)
     x = model.new_state(*np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
     step_adjoint(model, make_stepper("rk4", model, tc5.dt)).reverse(x, wp.clone(x))
+    # passive tracers ([tracers]), which no bundled scene has: the tendency with their rows and
+    # their ∇⁴ (q·hs in the surface's place), both layouts; the transport tests' prescribed wind
+    for per_element in (False, True):
+        model = ShallowWater.from_scene(tc5, grid, per_element=per_element, tracers=2, limiter="optimization")
+        u, v, h = tc5.make_case().initial(grid.lat, grid.lon)
+        x = model.new_state(u, v, h, masses=np.stack([h, h]))
+        make_stepper("rk4", model, tc5.dt).step(x)
+        flow = make_case("deformational_flow")
+        model = ShallowWater.from_case(grid, flow, ["continuity", "forcing"], per_element=per_element, tracers=1)
+        u, v, h = flow.initial(grid.lat, grid.lon)
+        make_stepper("ssprk3", model, 720.0).step(model.new_state(u, v, h, masses=h[None]))
     ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
@@ -279,11 +291,18 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "row_totals",
         "residual",
         "translating_low",
+        "deformational_flow",
+        "tracer_surface",
+        "element_bounds",
+        "neighbour_bounds",
+        "limit_element",
         "axpbypcz",
         "dss",
     ):
         assert key in keys, key
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4" in keys
+    assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4__q2" in keys
+    assert "tendency__continuity__np4__q1" in keys  # the forced, unweighted tendency of the transport tests
     plain_dss = {
         k.module.name
         for k in launched

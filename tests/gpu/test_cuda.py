@@ -71,3 +71,22 @@ def test_float32_helmholtz_solves_on_cuda_match_the_cpu(name):
     cpu, cuda = (tc5_state(name, d, {"precision": "mixed"}) for d in ("cpu", "cuda"))
     rel = rows_apart(cuda, cpu)
     assert max(rel) <= 1e-5, f"{name}: rows differ by {rel}"
+
+
+@requires_cuda
+def test_tracers_on_cuda_match_the_cpu():
+    """TC5 ne2 np4 with two tracers (q = 1 and the latitude marker; issue 125), rk4, six steps on
+    each device: every row, the tracers' masses too, within the explicit steppers' tolerance."""
+
+    def state(device: str) -> np.ndarray:
+        tracers = {"names": ["one", "marker"], "initial": ["constant", "latitude"]}
+        scene = load_scene("tc5_mountain", ne=2, np_=4, stepper="rk4", tracers=tracers)
+        days = STEPS * scene.dt / DAY
+        sim = Simulation(dataclasses.replace(scene, days=days, output_every_days=days), device, progress=False)
+        sim.run(None)
+        return sim.x.numpy()
+
+    cpu, cuda = state("cpu"), state("cuda")
+    assert cpu.shape[0] == 5
+    rel = rows_apart(cuda, cpu)
+    assert max(rel) <= TOLERANCE["explicit"], rel

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from swe_sphere import Simulation
+from swe_sphere import Simulation, gradient
 from swe_sphere.cases.tracers import TRACER_FIELDS
+from swe_sphere.cli import main
 from swe_sphere.config.scene import SceneError, load_scene, with_days
+from swe_sphere.core.errors import ArgumentError
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
@@ -123,3 +125,59 @@ def test_an_ensemble_refuses_tracers_in_one_line():
     scene = load_scene("galewsky", ne=2, np_=4, tracers=TRACERS)
     with pytest.raises(SceneError, match="run of members"):
         Simulation(scene, "cpu", members=2, progress=False)
+
+
+def test_the_limiter_keeps_each_elements_mass_and_meets_the_bounds():
+    """Guba et al. 2014's limiter on ne2 np4: the bounds of a smooth tracer taken, its masses then
+    pushed out of them (a ripple of ±30 % of hq that keeps each element's mass), limited: every q
+    back within the bounds (after the DSS, a convex combination of its elements' limited values)
+    and the total mass kept to round-off; q = 1 stays 1 to the DSS's rounding."""
+    grid, case = cached_grid(2, 4), load_scene("galewsky", ne=2, np_=4).make_case()
+    model = ShallowWater.from_case(grid, case, ["continuity"], tracers=2, threads=1, limiter="optimization")
+    u, v, h = case.initial(grid.lat, grid.lon)
+    q = TRACER_FIELDS["gaussian_hills"](grid.lat, grid.lon) + 0.1
+    x = model.new_state(u, v, h, masses=np.stack([h, h * q]))
+    model.limiter.bound(x)
+    lo, hi = model.limiter.near.numpy()[2:4]
+    s = grid.spheremp.reshape(-1, 16)
+    ripple = (0.3 * h * q * np.cos(np.arange(grid.nnodes) * 2.0)).reshape(-1, 16)
+    ripple -= ((s * ripple).sum(1) / s.sum(1))[:, None]  # each element's tracer mass kept
+    a = x.numpy()
+    a[4] += ripple.ravel()
+    assert (a[4] / a[2]).min() < lo.min() - 1e-3 and (a[4] / a[2]).max() > hi.max() + 1e-3
+    mass0 = grid.integrate(a[4])
+    model.limiter.apply(x)
+    a = x.numpy()
+    within(abs(grid.integrate(a[4]) - mass0) / mass0, bound(64), "the limited tracer's mass")
+    limited = a[4] / a[2]
+    assert lo.min() - 1e-12 <= limited.min() and limited.max() <= hi.max() + 1e-12
+    within(np.abs(a[3] / a[2] - 1).max(), bound(4), "q = 1 through the limiter")
+
+
+def test_a_bad_limiter_is_refused_in_one_line():
+    with pytest.raises(SceneError, match=r"tracers.limiter must be one of none, optimization \(got 'fct'"):
+        load_scene("galewsky", ne=2, np_=4, tracers={**TRACERS, "limiter": "fct"})
+    scene = load_scene("galewsky", ne=2, np_=4, tracers={**TRACERS, "limiter": "optimization"})
+    assert scene.tracer_limiter == "optimization" and scene.as_dict()["tracer_limiter"] == "optimization"
+    assert "tracer_limiter" not in load_scene("galewsky", ne=2, np_=4, tracers=TRACERS).as_dict()
+
+
+def test_a_gradient_refuses_tracers_in_one_line():
+    """The adjoint's tapes and costs are of u, v, h: a gradient of a scene with [tracers] is refused."""
+    scene = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4", tracers=TRACERS)
+    with pytest.raises(ArgumentError, match=r"\[tracers\]"):
+        gradient(scene, 2, lambda x: float(np.sum(x[2] ** 2)))
+
+
+def test_plot_and_remap_take_the_tracers(tmp_path):
+    """A run file's tracers are fields of ``swe-sphere remap`` (q on the lat-lon grid, its
+    attributes kept) and of ``swe-sphere plot --field`` (a map a tracer); another name is refused."""
+    scene = load_scene("galewsky", ne=2, np_=4, days=0.125, output={"every_days": 0.125}, tracers=TRACERS)
+    make_sim(scene).run(tmp_path / "run.nc")
+    assert main(["remap", str(tmp_path / "run.nc"), "--resolution", "5", "--output", str(tmp_path / "ll.nc")]) == 0
+    with xr.open_dataset(tmp_path / "ll.nc", decode_times=False) as ll:
+        assert ll.marker.dims == ("time", "lat", "lon") and ll.marker.attrs["units"] == "1"
+        assert np.allclose(ll.one, 1.0) and abs(float(ll.marker.isel(time=0).sel(lat=45.0)[0]) - 45.0) < 1.0
+    assert main(["plot", str(tmp_path / "run.nc"), "--field", "marker", "--output", str(tmp_path / "maps")]) == 0
+    assert (tmp_path / "maps" / "run_marker_day0.125.png").is_file()
+    assert main(["plot", str(tmp_path / "run.nc"), "--field", "dye", "--output", str(tmp_path / "no")]) == 2

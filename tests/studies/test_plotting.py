@@ -208,7 +208,7 @@ def test_sweep_plot(tmp_path):
         (["RUN", "--diff", "missing_ref.nc"], "not found"),
         (["RUN", "--diff", "REF", "--day", "0.5"], "day 0.5 not in"),
         (["RUN", "--field", "vorticity", "--diff", "REF"], "no vorticity"),
-        (["RUN", "--field", "pv"], "invalid choice"),
+        (["RUN", "--field", "pv"], "unknown field 'pv'"),
         (["OLD", "--field", "divergence"], "no divergence"),
         (["RUN", "--field", "divergence", "--diff", "REF"], "no divergence"),
         (["OLD", "--field", "vorticity"], "no vorticity"),

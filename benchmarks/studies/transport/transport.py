@@ -1,0 +1,131 @@
+"""The tracers on the standard transport test (Lauritzen, Skamarock, Prather & Taylor 2012, GMD 5, 887).
+
+Nair & Lauritzen (2010)'s nondivergent deformational flow (T = 12 days) carrying cosine
+bells, Gaussian hills, slotted cylinders, the correlated pair and q = 1
+(``deformational_flow.toml`` beside this script), at each ``--ne`` (np 4, Δt and ν scaled by the
+scene's rule from ne10's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), scored at t = T against
+the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
+undershoots φmax, φmin, each mass's relative change, and the l2 rates between grids; ``--limiter``
+the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8). ``--maps
+PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files.
+
+    python benchmarks/studies/transport/transport.py --ne 10 20 30 --limiter optimization \\
+        --maps docs/explanation/transport_bells.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py
+from results import positive, quiet_warp, recorded
+
+from swe_sphere import Simulation, load_scene
+
+SCENE = Path(__file__).with_name("deformational_flow.toml")
+# HOMME's own figures, its swirl test's recorded l2 with its limiter 8 (../shared/transport-tests.md)
+HOMME_L2 = {
+    10: {"bells": 0.347, "hills": 0.182, "cylinders": 0.437},
+    20: {"bells": 0.120, "hills": 0.0458, "cylinders": 0.331},
+}
+
+
+def scores(path: Path, names) -> dict:
+    """{tracer: {l1, l2, linf, phi_max, phi_min, mass_change}} of run file ``path``'s last time
+    against its first (the exact solution at t = T), area-weighted by the file's ``area``."""
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        w = ds.area.values
+        out = {}
+        for name in names:
+            q0, q = ds[name].isel(time=0).values, ds[name].isel(time=-1).values
+            d, span = q - q0, (q0.max() - q0.min()) or 1.0
+            out[name] = {
+                "l1": float((w * np.abs(d)).sum() / (w * np.abs(q0)).sum()),
+                "l2": float(math.sqrt((w * d * d).sum() / (w * q0 * q0).sum())),
+                "linf": float(np.abs(d).max() / np.abs(q0).max()),
+                "phi_max": float((q.max() - q0.max()) / span),
+                "phi_min": float((q.min() - q0.min()) / span),
+                "mass_change": float(ds[f"{name}_mass_change"][-1]),
+            }
+        return out
+
+
+def maps(path: Path, png: Path, name: str = "bells") -> None:
+    """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        fig, axes = plt.subplots(1, 3, figsize=(13, 3.2), sharey=True, constrained_layout=True)
+        for ax, k in zip(axes, range(3), strict=True):
+            field = ds[name].isel(time=k)
+            art = ax.tricontourf(
+                ds.lon, ds.lat, field, levels=np.linspace(-0.025, 1.075, 23), cmap="viridis", extend="both"
+            )
+            ax.set_title(f"{name} at day {float(ds.time[k]):g}")
+            ax.set_xlabel("longitude (°)")
+        axes[0].set_ylabel("latitude (°)")
+        fig.colorbar(art, ax=axes, shrink=0.9, label="q")
+        fig.savefig(png, dpi=110)
+        plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ne", type=positive(int), nargs="+", default=[10])
+    parser.add_argument("--days", type=positive(float), default=12.0, help="the run (T = 12: the whole test)")
+    parser.add_argument("--maps", type=Path, default=None, help="a PNG of the bells at 0, T/2, T (the finest grid)")
+    parser.add_argument("--keep", type=Path, default=None, help="a folder to keep the run files in")
+    parser.add_argument(
+        "--limiter", choices=("none", "optimization"), default="none", help="tracers.limiter (Guba et al. 2014's)"
+    )
+    args = parser.parse_args()
+    quiet_warp()
+    stem = None if args.limiter == "none" else f"transport_{args.limiter}"
+    with recorded(__file__, stem) as figures, tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        l2 = {}
+        for ne in args.ne:
+            over = {"output.every_days": args.days / 2, "tracers.limiter": args.limiter}
+            scene = load_scene(SCENE, ne=ne, days=args.days, overrides=over)
+            path = folder / f"deformational_flow_ne{ne}.nc"
+            Simulation(scene, "cpu", progress=False).run(path, overwrite=True)
+            names = [name for name, _ in scene.tracers]
+            got = scores(path, names)
+            figures[f"ne{ne}"] = got
+            l2[ne] = {n: got[n]["l2"] for n in names}
+            print(
+                f"ne{ne} np4 dt {scene.dt:g} s nu_s {scene.nu_s:.3g} m4/s, limiter {args.limiter}, day {args.days:g}:"
+            )
+            for n in names:
+                g = got[n]
+                homme = HOMME_L2.get(ne, {}).get(n)
+                beside = "" if homme is None else f"  (HOMME {homme})"
+                print(
+                    f"  {n:11s} l1 {g['l1']:.4f} l2 {g['l2']:.4f} linf {g['linf']:.4f} "
+                    f"phi_max {g['phi_max']:+.4f} phi_min {g['phi_min']:+.4f} mass {g['mass_change']:+.1e}{beside}"
+                )
+        grids = sorted(l2)
+        for a, b in zip(grids, grids[1:], strict=False):
+            rates = {n: math.log(l2[a][n] / l2[b][n]) / math.log(b / a) for n in l2[a] if l2[b][n] > 0}
+            figures[f"rate_ne{a}_ne{b}"] = rates
+            print(f"l2 rate ne{a} -> ne{b}: " + ", ".join(f"{n} {r:.2f}" for n, r in rates.items()))
+        if args.maps is not None:
+            maps(folder / f"deformational_flow_ne{grids[-1]}.nc", args.maps)
+            print(f"maps: {args.maps}", file=sys.stderr)  # a file written, not a figure
+
+
+if __name__ == "__main__":
+    main()

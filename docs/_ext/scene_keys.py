@@ -143,6 +143,10 @@ KEYS = {
         '"none"',
         "the tracers' shape-preserving limiter: \"optimization\" (Guba et al. 2014, HOMME's limiter 8; one MPI rank)",
     ),
+    "tracers.hyperviscosity": (
+        "true",
+        "the depth's ∇⁴ on the tracers, ν_s ∇⁴ of q(h + hs) (keeps q = 1 at 1); false: none on them",
+    ),
     "tracers.initial": (
         "none",
         "each tracer's initial field, by name: constant, latitude, cosine_bells, gaussian_hills, slotted_cylinders, "

@@ -391,6 +391,16 @@ def resolve_tracers(
     return tuple(zip(names, initial, strict=True))
 
 
+def resolve_tracer_hyperviscosity(table: dict, terms: tuple) -> bool:
+    """``Scene.tracer_hyperviscosity`` of the [tracers] table: its ``hyperviscosity`` (default true:
+    the tracers take the depth's ∇⁴, ν_s ∇⁴ of q(h + hs)). Raises ``SceneError`` for true given
+    where the scene has no hyperviscosity term."""
+    value = table.get("hyperviscosity", True)
+    if "hyperviscosity" in table and value and "hyperviscosity" not in terms:
+        raise SceneError("tracers.hyperviscosity = true needs the hyperviscosity term")
+    return bool(value)
+
+
 def resolve_limiter(table: dict) -> str:
     """``Scene.tracer_limiter`` of the [tracers] table: its ``limiter``, one of
     ``model.limiter.LIMITERS`` ("none" by default). Raises ``SceneError`` naming the key."""

@@ -103,6 +103,9 @@ class Scene:
     tracer_limiter : str
         [tracers] limiter: "none" or "optimization", the tracers' shape-preserving limiter
         (``model.limiter``: Guba et al. 2014, HOMME's limiter 8).
+    tracer_hyperviscosity : bool
+        [tracers] hyperviscosity: the tracers take the depth's ∇⁴ (ν_s ∇⁴ of q(h + hs); True, the
+        default) or none (then q = 1 is no longer kept at 1 where the depth is damped).
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -158,6 +161,7 @@ class Scene:
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
     tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
+    tracer_hyperviscosity: bool = True  # [tracers] hyperviscosity: the depth's ∇⁴ on the tracers
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -286,6 +290,8 @@ class Scene:
             del d["tracers"]
         if d["tracer_limiter"] == "none":  # the default, likewise
             del d["tracer_limiter"]
+        if d["tracer_hyperviscosity"]:  # the default, likewise
+            del d["tracer_hyperviscosity"]
         return d
 
 

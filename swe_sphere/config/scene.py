@@ -64,7 +64,9 @@ the run length, the output interval and the hyperviscosity. Layout::
     [tracers]         names = ["dye"], initial = ["cosine_bells"]: passive tracers q carried as hq
                       by the depth's continuity (``cases.tracers.TRACER_FIELDS``: their
                       initial fields; explicit Runge-Kutta steppers at a fixed dt),
-                      limiter = "none" | "optimization" (Guba et al. 2014's, HOMME's limiter 8)
+                      limiter = "none" | "optimization" (Guba et al. 2014's, HOMME's limiter 8),
+                      hyperviscosity = true | false (the depth's ∇⁴ on the tracers, ν_s ∇⁴ of
+                      q(h + hs): true keeps q = 1 at 1; false leaves them undamped)
     [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
                       float32, the state and its accumulation float64; ``Scene.precision``):
                       refused with a stepper that differences the RHS
@@ -113,6 +115,7 @@ from .resolve import (
     resolve_stepper_days,
     resolve_stepper_options,
     resolve_terms,
+    resolve_tracer_hyperviscosity,
     resolve_tracers,
     scene_title,
 )
@@ -321,6 +324,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         precision=t.precision,
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),
+        tracer_hyperviscosity=resolve_tracer_hyperviscosity(s.get("tracers", {}), t.terms),
     )
     if t.case.case.notes():  # what the case read, said as the run's grid has it read (a reanalysis: its truncation)
         scene = dataclasses.replace(scene, notes=(*scene.make_case().notes(), *scene.notes))

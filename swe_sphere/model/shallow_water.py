@@ -158,10 +158,13 @@ class ShallowWater:
         masses hq (m) in rows 3..3+K−1 of the state, in flux form by the continuity's own
         arithmetic (``kernels.tendencies``: ∂(hq)/∂t = −∇·(hq v)), so that q = 1 stays 1 and
         each tracer's mass ∫hq is conserved as h's; 0: the tendency kernels hold no tracer code.
-        With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``).
+        With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``), unless
+        ``tracer_hyperviscosity`` is False.
     limiter : "none" (default) or "optimization": the tracers' shape-preserving limiter
         (``limiter.TracerLimiter``: Guba et al. 2014, HOMME's limiter 8), which a stepper applies
         at the end of each step within the bounds of its start; one rank only.
+    tracer_hyperviscosity : True (default): the tracers take the ∇⁴ (``tracers`` above); False:
+        none on them (q = 1 then drifts where the depth is damped; their masses are still kept).
 
     Raises
     ------
@@ -211,6 +214,7 @@ class ShallowWater:
         depth=None,
         tracers=0,
         limiter="none",
+        tracer_hyperviscosity=True,
     ):
         if not isinstance(grid, CubedSphere):
             raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
@@ -239,6 +243,7 @@ class ShallowWater:
         if tracers and "continuity" not in terms:
             raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
         self.tracers, self.rows = int(tracers), 3 + int(tracers)
+        self.tracer_hyperviscosity = bool(tracer_hyperviscosity)  # the ∇⁴ on them (``hyperviscosity``)
         if limiter not in LIMITERS:
             raise ArgumentError(f"limiter must be one of {', '.join(LIMITERS)} (got {got(limiter)})")
         dtype = precision_dtype(precision)
@@ -330,6 +335,7 @@ class ShallowWater:
         options.setdefault("precision", scene.precision)
         options.setdefault("tracers", len(scene.tracers))
         options.setdefault("limiter", scene.tracer_limiter)
+        options.setdefault("tracer_hyperviscosity", scene.tracer_hyperviscosity)
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
@@ -500,9 +506,11 @@ class ShallowWater:
         (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
         ``advance_hypervis``), then the element filter once (``filter.apply``, a scene's
         [filter]; HOMME ``filter_P``); nothing without the term and the filter. The tracers'
-        masses first (``hv.apply_tracers``: ν_s ∇⁴ of q(h + hs), q read before h's ∇⁴)."""
+        masses first (``hv.apply_tracers``: ν_s ∇⁴ of q(h + hs), q read before h's ∇⁴), unless
+        ``tracer_hyperviscosity`` is False."""
         if self.hv is not None:
-            self.hv.apply_tracers(x, dt)
+            if self.tracer_hyperviscosity:
+                self.hv.apply_tracers(x, dt)
             self.hv.apply(x, dt)
         if self.filter is not None:
             self.filter.apply(x)

@@ -2,6 +2,8 @@
 so that q = 1 stays 1 and each tracer's mass is conserved as the depth's; compiled only when a
 scene names them; refused in one line where they cannot ride."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -181,3 +183,24 @@ def test_plot_and_remap_take_the_tracers(tmp_path):
     assert main(["plot", str(tmp_path / "run.nc"), "--field", "marker", "--output", str(tmp_path / "maps")]) == 0
     assert (tmp_path / "maps" / "run_marker_day0.125.png").is_file()
     assert main(["plot", str(tmp_path / "run.nc"), "--field", "dye", "--output", str(tmp_path / "no")]) == 2
+
+
+def test_the_tracers_hyperviscosity_is_a_choice():
+    """[tracers] hyperviscosity = false leaves the tracers undamped: on TC5 ne3 (two of its ∇⁴
+    steps) q = 1 drifts from 1 where h is damped, the masses still kept; true (the default) keeps
+    q = 1 within round-off. A true without the hyperviscosity term is refused in one line."""
+    base = {"names": ["one"], "initial": ["constant"]}
+    drift = {}
+    for choice in (True, False):
+        scene = load_scene("tc5_mountain", ne=3, np_=4, stepper="ssprk3", tracers={**base, "hyperviscosity": choice})
+        assert scene.tracer_hyperviscosity is choice
+        days = 2 * scene.hypervis_every * scene.dt / 86400.0  # the ∇⁴ twice
+        sim = make_sim(with_days(dataclasses.replace(scene, output_every_days=days), days))
+        sim.run(None)
+        a = sim.x.numpy()
+        drift[choice] = np.abs(a[3] / a[2] - 1).max()
+        within(abs(sim.grid.integrate(a[3]) / sim.grid.integrate(a[2]) - 1), bound(64), "the mass of q = 1 against h's")
+    within(drift[True], bound(24), "q = 1 with the tracers' ∇⁴")
+    assert drift[False] > 1e-8  # the depth's ∇⁴ moved h, not hq
+    with pytest.raises(SceneError, match="needs the hyperviscosity term"):
+        load_scene("tc2_steady", ne=2, tracers={**base, "hyperviscosity": True})

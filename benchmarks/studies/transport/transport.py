@@ -6,7 +6,8 @@ bells, Gaussian hills, slotted cylinders, the correlated pair and q = 1
 scene's rule from ne10's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), scored at t = T against
 the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
 undershoots φmax, φmin, each mass's relative change, and the l2 rates between grids; ``--limiter``
-the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8). ``--maps
+the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8); the bells' filament
+diagnostic l_f(τ) at T/2 (``filaments``). ``--maps
 PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files.
 
     python benchmarks/studies/transport/transport.py --ne 10 20 30 --limiter optimization \\
@@ -58,6 +59,22 @@ def scores(path: Path, names) -> dict:
         return out
 
 
+# the filament diagnostic's thresholds τ (Lauritzen et al. 2012 §3.3: 0.10, 0.15, ..., 1.0)
+THRESHOLDS = tuple(round(0.1 + 0.05 * k, 2) for k in range(19))
+
+
+def filaments(path: Path, name: str = "bells") -> dict:
+    """{τ: l_f} of run file ``path``'s tracer ``name`` at its middle output time (T/2): l_f(τ) =
+    100 A(τ, T/2) / A(τ, 0), A(τ, t) the area (the file's ``area``) where q ≥ τ (Lauritzen et al.
+    2012 eq. 17); 100 where the flow keeps the area, less where filaments fall below τ."""
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        w = ds.area.values
+        q0, half = ds[name].isel(time=0).values, ds[name].isel(time=ds.sizes["time"] // 2).values
+        return {tau: float(100 * w[half >= tau].sum() / w[q0 >= tau].sum()) for tau in THRESHOLDS if (q0 >= tau).any()}
+
+
 def maps(path: Path, png: Path, name: str = "bells") -> None:
     """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each."""
     import matplotlib
@@ -105,6 +122,7 @@ def main() -> None:
             names = [name for name, _ in scene.tracers]
             got = scores(path, names)
             figures[f"ne{ne}"] = got
+            figures[f"filaments_ne{ne}"] = lf = filaments(path)
             l2[ne] = {n: got[n]["l2"] for n in names}
             print(
                 f"ne{ne} np4 dt {scene.dt:g} s nu_s {scene.nu_s:.3g} m4/s, limiter {args.limiter}, day {args.days:g}:"
@@ -117,6 +135,8 @@ def main() -> None:
                     f"  {n:11s} l1 {g['l1']:.4f} l2 {g['l2']:.4f} linf {g['linf']:.4f} "
                     f"phi_max {g['phi_max']:+.4f} phi_min {g['phi_min']:+.4f} mass {g['mass_change']:+.1e}{beside}"
                 )
+            shown = (0.1, 0.5, 0.9, 1.0)
+            print("  bells' filaments l_f at T/2: " + ", ".join(f"tau {t:g} {lf[t]:.1f}" for t in shown if t in lf))
         grids = sorted(l2)
         for a, b in zip(grids, grids[1:], strict=False):
             rates = {n: math.log(l2[a][n] / l2[b][n]) / math.log(b / a) for n in l2[a] if l2[b][n] > 0}

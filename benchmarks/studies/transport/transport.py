@@ -7,7 +7,8 @@ scene's rule from ne10's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), sc
 the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
 undershoots φmax, φmin, each mass's relative change, and the l2 rates between grids; ``--limiter``
 the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8); the bells' filament
-diagnostic l_f(τ) at T/2 (``filaments``). ``--maps
+diagnostic l_f(τ) and the correlated pair's mixing diagnostics l_r, l_u, l_o at T/2 (``filaments``,
+``mixing``). ``--maps
 PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files.
 
     python benchmarks/studies/transport/transport.py --ne 10 20 30 --limiter optimization \\
@@ -75,6 +76,43 @@ def filaments(path: Path, name: str = "bells") -> dict:
         return {tau: float(100 * w[half >= tau].sum() / w[q0 >= tau].sum()) for tau in THRESHOLDS if (q0 >= tau).any()}
 
 
+def mixing(path: Path, pair=("bells", "correlated")) -> dict:
+    """Lauritzen et al. 2012 §3.4's mixing diagnostics of run file ``path``'s correlated pair at T/2:
+    each node's (χ, ξ) = (bells, correlated) and its distance d to the initial relation ξ =
+    −0.8 χ² + 0.9 over χ in its initial range, both axes scaled by their initial ranges; nodes
+    between the relation and its chord are real mixing (l_r), the rest within the initial ranges
+    range-preserving unmixing (l_u), those outside them overshooting (l_o); each l the
+    area-weighted sum of d over its nodes over the total area."""
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        w = ds.area.values
+        half = ds.sizes["time"] // 2
+        chi0, xi0 = (ds[n].isel(time=0).values for n in pair)
+        chi, xi = (ds[n].isel(time=half).values for n in pair)
+    lo, hi = chi0.min(), chi0.max()
+    xlo, xhi = xi0.min(), xi0.max()
+    curve = lambda c: -0.8 * c**2 + 0.9  # noqa: E731
+    c = np.linspace(lo, hi, 4001)
+    d = np.concatenate(  # in blocks of nodes: a block's distances to every sample of the curve at once
+        [
+            np.sqrt(((a[:, None] - c) / (hi - lo)) ** 2 + ((b[:, None] - curve(c)) / (xhi - xlo)) ** 2).min(axis=1)
+            for a, b in zip(
+                np.array_split(chi, -(-chi.size // 2048)), np.array_split(xi, -(-xi.size // 2048)), strict=True
+            )
+        ]
+    )
+    chord = curve(lo) + (curve(hi) - curve(lo)) * (chi - lo) / (hi - lo)
+    inside = (chi >= lo) & (chi <= hi) & (xi >= xlo) & (xi <= xhi)
+    real = inside & (xi >= chord) & (xi <= curve(np.clip(chi, lo, hi)))
+    total = w.sum()
+    return {
+        "l_r": float((w * d)[real].sum() / total),
+        "l_u": float((w * d)[inside & ~real].sum() / total),
+        "l_o": float((w * d)[~inside].sum() / total),
+    }
+
+
 def maps(path: Path, png: Path, name: str = "bells") -> None:
     """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each."""
     import matplotlib
@@ -123,6 +161,7 @@ def main() -> None:
             got = scores(path, names)
             figures[f"ne{ne}"] = got
             figures[f"filaments_ne{ne}"] = lf = filaments(path)
+            figures[f"mixing_ne{ne}"] = mx = mixing(path)
             l2[ne] = {n: got[n]["l2"] for n in names}
             print(
                 f"ne{ne} np4 dt {scene.dt:g} s nu_s {scene.nu_s:.3g} m4/s, limiter {args.limiter}, day {args.days:g}:"
@@ -137,6 +176,7 @@ def main() -> None:
                 )
             shown = (0.1, 0.5, 0.9, 1.0)
             print("  bells' filaments l_f at T/2: " + ", ".join(f"tau {t:g} {lf[t]:.1f}" for t in shown if t in lf))
+            print("  mixing at T/2: " + ", ".join(f"{k} {v:.2e}" for k, v in mx.items()))
         grids = sorted(l2)
         for a, b in zip(grids, grids[1:], strict=False):
             rates = {n: math.log(l2[a][n] / l2[b][n]) / math.log(b / a) for n in l2[a] if l2[b][n] > 0}

@@ -3,7 +3,7 @@ builds both, times each benchmark on both with their rounds interleaved (a chang
 load hits both alike), and flags a ratio beyond ``--factor`` that its statistics call real; its
 table, with the date, machine, load and commits, becomes ``results/compare/<stem>.json``::
 
-    python benchmarks/compare.py d6c19d2 HEAD [--factor 1.1] [--bench REGEX] [--results STEM]
+    python benchmarks/compare.py d6c19d2 HEAD [--factor 1.1] [--bench REGEX] [--rounds N] [--results STEM]
 
 The exit status is asv's: 0 when nothing got slower beyond the factor, 1 when something did (the
 record is written either way: a slower figure is a figure)."""
@@ -34,6 +34,7 @@ def main() -> int:
     parser.add_argument("head", nargs="?", default="HEAD", help="the later one (default HEAD)")
     parser.add_argument("--factor", type=positive(float, 1.0), default=1.1, help="a ratio beyond it is flagged")
     parser.add_argument("--bench", help="only the benchmarks matching this regular expression")
+    parser.add_argument("--rounds", type=positive(int), help="asv's rounds a benchmark (default its 2), taken in turn")
     parser.add_argument("--results", help="results/compare/<STEM>.json (default: compare)")
     args = parser.parse_args()
     for rev in (args.base, args.head):
@@ -41,8 +42,9 @@ def main() -> int:
             parser.error(f"no commit {rev!r} in this repository")
     command = ["asv", "continuous", "--config", str(CONFIG), "--factor", str(args.factor), "--interleave-rounds"]
     command += ["--no-only-changed", *(["--bench", args.bench] if args.bench else [])]
+    command += ["--attribute", f"rounds={args.rounds}"] if args.rounds else []
     with recorded(__file__, args.results) as figures:
-        figures.update(base=args.base, head=args.head, factor=args.factor)
+        figures.update(base=args.base, head=args.head, factor=args.factor, rounds=args.rounds)
         print(" ".join([*command, args.base, args.head]))
         done = subprocess.run([*command, args.base, args.head], capture_output=True, text=True)
         print(table(done.stdout))

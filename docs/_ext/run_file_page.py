@@ -104,13 +104,13 @@ def sections() -> list[tuple[str, str, str]]:
     with tempfile.TemporaryDirectory() as folder:
         t = tables(write_run_file(Path(folder)))
     return [
-        ("run-file-dimensions", "dimensions", _table(("name", "size here", "meaning"), t["dimensions"], "20 12 68")),
+        ("run-file-dimensions", "Dimensions", _table(("name", "size here", "meaning"), t["dimensions"], "20 12 68")),
         (
             "run-file-variables",
-            "variables",
+            "Variables",
             _table(("name", "dimensions", "units", "long_name", "standard_name"), t["variables"], "18 16 10 36 20"),
         ),
-        ("run-file-attributes", "global attributes", _table(("name", "meaning"), t["attributes"], "25 75")),
+        ("run-file-attributes", "Global attributes", _table(("name", "meaning"), t["attributes"], "25 75")),
     ]
 
 

@@ -231,7 +231,7 @@ def sections() -> list[tuple[str, str, str]]:
         lines += ["   * - key", "     - type", "     - default", "     - meaning"]
         for key, kind, default, meaning in entries:
             lines += [f"   * - ``{key}``", f"     - {kind}", f"     - {default}", f"     - {meaning}"]
-        out.append((f"scene-{table or 'top'}", f"[{table}]" if table else "top level", "\n".join(lines)))
+        out.append((f"scene-{table or 'top'}", f"[{table}]" if table else "Top level", "\n".join(lines)))
     return out
 
 

@@ -26,7 +26,7 @@ What changes, and why it keeps the pages' order meaningful:
   sweeps two (each member's sweep is the same code from another start, and two make
   members.csv's spread; reference.md's four cost 7 s).
 - A frontier keeps the first of its ``--ne`` (shortened as a run's) and ``--steppers`` and two of
-  its ``--np`` (each grid is a sweep of its own: docs/efficiency/frontier.md's ladders at ne 12–24 and np
+  its ``--np`` (each grid is a sweep of its own: docs/explanation/efficiency/frontier.md's ladders at ne 12–24 and np
   7–8 ran for over 15 minutes at their own grids).
 - ``mesh --levels N`` refines one level (2x, not 2^N x): the refinement, its transitions
   and the run on the file stay; the 4x mesh's cells took 12 s of CPU to build and its run

@@ -1,4 +1,4 @@
-"""Every example of README.md and docs/*.md runs as written, in page order, in one fresh
+"""Every example of README.md and docs/**/*.md runs as written, in page order, in one fresh
 folder per page (as a user on a fresh clone: ``testcases/`` beside it): each bash/sh and
 Python code block, and each command written inline (`` `swe-sphere run galewsky --days
 12` ``, a span of one or two lines), one after the other, so that a page whose commands
@@ -41,6 +41,7 @@ from swe_sphere.mesh.mesh import write_exodus
 from docs_shortening import EACH, KEPT, coarser_dt, run_each, shorten, small_ne
 
 ROOT = Path(__file__).resolve().parents[1]
+STUDY = Path("docs", "explanation", "efficiency")  # the efficiency study's folder: its scripts, tables, figures
 SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
 # A fenced block (language, text), or an inline code span of one or two lines.
 EXAMPLE = re.compile(r"^```(\w*)\n(.*?)^```|`([^`\n]+(?:\n[^`\n]+)?)`", re.M | re.S)
@@ -149,12 +150,12 @@ def plain_words(line: str) -> list[str] | None:
 
 def run_examples(path: Path, folder: Path, inline: bool = True) -> None:
     (folder / "testcases").symlink_to(ROOT / "testcases")
-    (folder / "docs" / "efficiency").mkdir(parents=True)  # the pages' scripts, beside the figures they write
-    (folder / "docs" / "efficiency" / "tables.py").symlink_to(ROOT / "docs" / "efficiency" / "tables.py")
+    (folder / STUDY).mkdir(parents=True)  # the pages' scripts, beside the figures they write
+    (folder / STUDY / "tables.py").symlink_to(ROOT / STUDY / "tables.py")
     # the frontier figures' script merges into the tables beside itself and draws there (copies:
     # what it writes stays in the test's folder) and reads the peers' results
-    for f in [ROOT / "docs" / "efficiency" / "frontier_figures.py", *(ROOT / "docs" / "efficiency").glob("*.csv")]:
-        shutil.copy(f, folder / "docs" / "efficiency")
+    for f in [ROOT / STUDY / "frontier_figures.py", *(ROOT / STUDY).glob("*.csv")]:
+        shutil.copy(f, folder / STUDY)
     (folder / "benchmarks").mkdir()
     (folder / "benchmarks" / "results").symlink_to(ROOT / "benchmarks" / "results")
     bin_ = folder / ".bin"
@@ -288,7 +289,7 @@ def test_inline_commands_are_examples_and_placeholders_are_not(tmp_path):
         "swe-sphere sweep galewsky --runs ... --output g\nmpiexec -n 2 swe-sphere run tc5_mountain\n```\n"
         "Then `swe-sphere run tc5_mountain --stepper S --dt DT`, "
         "`swe-sphere run tc6_rossby_haurwitz_homme -s hyperviscosity.nu=NU`, "
-        "`python docs/efficiency/tables.py s --figures DIR` and `python -m pytest -m slow`.\n"
+        "`python docs/explanation/efficiency/tables.py s --figures DIR` and `python -m pytest -m slow`.\n"
     )
     assert [argv[-1] for argv in programs(page)] == [
         "set -e\nswe-sphere run galewsky --stepper fbrk32 --dt 257.1 --days 12",
@@ -337,8 +338,11 @@ def test_each_python_block_runs_as_a_program_of_its_own(tmp_path, monkeypatch, c
     assert not (tmp_path / "after").exists()
 
 
-STUDY_PAGES = tuple(sorted((ROOT / "docs" / "efficiency").glob("*.md")))  # each study of efficiency.md in full
-PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *STUDY_PAGES)
+# every Markdown page of the manual; the gallery's examples (docs/examples/) run in the site's build
+DOCS_PAGES = tuple(
+    p for p in sorted((ROOT / "docs").rglob("*.md")) if not {"examples", "gallery", "_build"} & set(p.parts)
+)
+PAGES = (ROOT / "README.md", *DOCS_PAGES)
 SCENE_KEY = re.compile(r"(?:^|\s)([a-z_]+)\.([a-z_][a-z_0-9]*)(?=[=\s]|$)")  # `grid.cube`, `-s grid.cube=...`
 
 
@@ -372,11 +376,11 @@ def _unbound_names(source: str) -> list[str]:
 
 
 def test_each_python_block_runs_pasted_alone():
-    """docs/gradients.md's fifth block (and two of the README's) used `swe_sphere` that an
+    """docs/how-to/gradients.md's fifth block (and two of the README's) used `swe_sphere` that an
     earlier block imported: pasted alone, a NameError (issue 117, item 14). Each block binds
     every name it reads."""
     unbound = [
-        f"{page.name} block {k}: {names}"
+        f"{page.relative_to(ROOT)} block {k}: {names}"
         for page in PAGES
         for k, (lang, text) in enumerate(examples(page, inline=False))
         if lang == "python" and (names := _unbound_names(text))
@@ -385,7 +389,7 @@ def test_each_python_block_runs_pasted_alone():
 
 
 def test_the_pages_name_only_scene_keys_that_exist():
-    """docs/efficiency.md named `grid.equidistant` ("unknown key grid.equidistant in scene"; the
+    """docs/explanation/efficiency.md named `grid.equidistant` ("unknown key grid.equidistant in scene"; the
     key is `grid.cube`): every `SECTION.KEY` written in a page's code span, SECTION a scene
     table of fixed keys, is a key of it."""
     unknown = []
@@ -394,7 +398,7 @@ def test_the_pages_name_only_scene_keys_that_exist():
             for section, key in SCENE_KEY.findall(span):
                 keys = SCHEMA.get(section)
                 if isinstance(keys, dict) and key not in keys and not _is_python_name(section, key):
-                    unknown.append(f"{page.name}: {section}.{key} in `{span}`")
+                    unknown.append(f"{page.relative_to(ROOT)}: {section}.{key} in `{span}`")
     assert unknown == []
 
 
@@ -414,9 +418,9 @@ def test_readme_examples_run_as_written(tmp_path):
     run_examples(ROOT / "README.md", tmp_path, inline=False)  # its inline commands restate its blocks
 
 
-# efficiency.md's studies are ten sweeps and their tables: about a minute of CPU even shortened;
-# each study's own page (docs/efficiency/*.md) runs every command that made it
-SLOW_PAGES = ("efficiency.md", *(p.name for p in STUDY_PAGES))
+# the efficiency study's page is ten sweeps and their tables: about a minute of CPU even
+# shortened; each study's own page (docs/explanation/efficiency/*.md) runs every command that made it
+SLOW_PAGES = (ROOT / STUDY.with_suffix(".md"), *(ROOT / STUDY).glob("*.md"))
 
 
 @pytest.mark.parametrize(
@@ -424,9 +428,12 @@ SLOW_PAGES = ("efficiency.md", *(p.name for p in STUDY_PAGES))
     [
         pytest.param(
             str(p.relative_to(ROOT / "docs")),
-            marks=[pytest.mark.xdist_group(f"docs-{p.stem}"), *([pytest.mark.slow] if p.name in SLOW_PAGES else [])],
+            marks=[
+                pytest.mark.xdist_group(f"docs-{p.relative_to(ROOT / 'docs').with_suffix('')}"),
+                *([pytest.mark.slow] if p in SLOW_PAGES else []),
+            ],
         )
-        for p in [*sorted((ROOT / "docs").glob("*.md")), *STUDY_PAGES]
+        for p in DOCS_PAGES
         if programs(p)
     ],
 )

@@ -1,4 +1,4 @@
-"""The layers (pyproject.toml's [tool.importlinter], docs/design.md) hold: each folder of
+"""The layers (pyproject.toml's [tool.importlinter], docs/explanation/design.md) hold: each folder of
 swe_sphere imports only from the folders below it, the kernels (``swe_sphere/kernels``, a
 link to ``kernels/``) from none, and no import circle, function-level imports included.
 CI runs ``lint-imports`` too; this test makes ``python -m pytest`` alone catch a new circle."""

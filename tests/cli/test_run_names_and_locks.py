@@ -288,7 +288,7 @@ def test_what_the_readme_writes_in_a_clone_is_ignored_by_git():
     kept = [
         "testcases/tc5_mountain.toml",
         "testcases/reference/tc5_mountain_T213.nc",
-        "docs/efficiency/tc5_ne30_temporal_error.png",
+        "docs/explanation/efficiency/tc5_ne30_temporal_error.png",
         "docs/galewsky_vorticity_day6_lat0to90.png",  # the README's picture
     ]
     assert (

@@ -1,4 +1,4 @@
-"""docs/efficiency/tables.py, the script that makes the efficiency study's tables and
+"""docs/explanation/efficiency/tables.py, the script that makes the efficiency study's tables and
 figures from sweep folders: it runs on any sweep folder, and refuses in one line what
 is not one (it ended in a traceback)."""
 
@@ -18,7 +18,7 @@ from swe_sphere.cli import main
 
 from helpers import without_sweep_figures
 
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "efficiency" / "tables.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "efficiency" / "tables.py"
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The frontier figures of docs/efficiency/frontier.md with the peers' points: frontier_<case>.png from
+"""The frontier figures of docs/explanation/efficiency/frontier.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
 from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur_galewsky_np56.json``:
 Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load, with
@@ -16,8 +16,8 @@ frontier``'s, each a rectangular ladder) into frontier_<case>.csv: a row replace
 same label (ne/np/stepper), the others are added, the rows are ordered by ne, np and stepper,
 and ``on_front`` is recomputed over all of them (``frontier.pareto_front``).
 
-    python docs/efficiency/frontier_figures.py            # every case, in docs/efficiency/
-    python docs/efficiency/frontier_figures.py --merge tc5 fr/tc5_np6/frontier.csv   # then tc5's figure
+    python docs/explanation/efficiency/frontier_figures.py            # every case, in docs/explanation/efficiency/
+    python docs/explanation/efficiency/frontier_figures.py --merge tc5 fr/tc5_np6/frontier.csv   # then tc5's figure
 """
 
 import argparse

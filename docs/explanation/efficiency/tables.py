@@ -1,4 +1,4 @@
-"""Tables and figures of docs/efficiency/*.md from the sweeps' own files.
+"""Tables and figures of docs/explanation/efficiency/*.md from the sweeps' own files.
 
 Reads each sweep directory's ``sweep.csv`` and ``verdicts.csv`` (written by
 ``swe-sphere sweep``) and prints, as Markdown, the main table (per case, grid
@@ -12,10 +12,10 @@ per sweep (the cheapest qualifying run of each stepper per criterion). With
 missing). A folder that is not a sweep's, or a --figures path that is not a folder,
 is refused in one line (exit 2) before anything is printed.
 
-    python docs/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/efficiency
-    python docs/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
-    python docs/efficiency/tables.py study/tc5_x2 --regions   # every run's errors by region (a refined mesh)
-    python docs/efficiency/tables.py study/tc5_x2 --temporal-regions   # temporal errors by region over spatial
+    python docs/explanation/efficiency/tables.py study/tc5_ne8 study/tc5_ne16 --figures docs/explanation/efficiency
+    python docs/explanation/efficiency/tables.py study/tc5_epi_ne30 --family epi2,epi3   # the family against the rest
+    python docs/explanation/efficiency/tables.py study/tc5_x2 --regions   # every run's errors by region (a refined mesh)
+    python docs/explanation/efficiency/tables.py study/tc5_x2 --temporal-regions   # temporal errors by region over spatial
 """
 
 import argparse

@@ -41,22 +41,8 @@ extensions = [
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
 
-# The Markdown pages of before the site, not yet placed in getting-started/, how-to/ or
-# explanation/: left out of the build until they move (each entry goes when its page does).
-_UNPLACED = [
-    "design.md",
-    "efficiency.md",
-    "efficiency/**",
-    "experiments.md",
-    "gradients.md",
-    "methods.md",
-    "precision.md",
-    "real_data.md",
-    "reference.md",
-    "scaling.md",
-]
 # examples/ holds sphinx-gallery's sources, rendered into gallery/ (not read as pages).
-exclude_patterns = ["_build", "_templates", "examples", *_UNPLACED]
+exclude_patterns = ["_build", "_templates", "examples"]
 
 
 # MyST: $...$ and $$...$$ maths, \begin{align} blocks, ::: fences, definition lists; heading

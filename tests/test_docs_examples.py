@@ -10,7 +10,8 @@ Python blocks in a row run in one process, ``docs_shortening.run_each``); a Pyth
 block's ``ne=N`` becomes ``ne=small_ne(N)`` likewise, and a ``dt=`` beside it keeps its
 Courant number, and a ``frontier.plan``'s lists keep what ``swe-sphere frontier`` keeps
 (``python_line``). Left out, with the reason: ``pip
-install`` and ``python -m pytest`` (this test runs inside them), ``mpiexec`` lines (MPI
+install`` and ``python -m pytest`` (this test runs inside them), ``python -m sphinx`` (the
+site's build, run by CI: a page's folder here holds no docs/), ``mpiexec`` lines (MPI
 tests: tests/test_mpi.py), ``--device cuda`` lines (tests/test_cuda.py),
 ``python benchmarks/`` (timings: the benchmarks are measured, not examples), a bare
 subcommand written inline (`` `swe-sphere remap` ``: a name, not a command), and a
@@ -46,7 +47,7 @@ SHIM = Path(__file__).resolve().with_name("docs_shortening.py")
 # A fenced block (language, text), or an inline code span of one or two lines.
 EXAMPLE = re.compile(r"^```(\w*)\n(.*?)^```|`([^`\n]+(?:\n[^`\n]+)?)`", re.M | re.S)
 INLINE_COMMAND = re.compile(r"(\w+=\S* )*(swe-sphere \w+ \S|python \S)")
-LEFT_OUT = ("pip install", "python -m pytest", "mpiexec", "--device cuda", "python benchmarks/")
+LEFT_OUT = ("pip install", "python -m pytest", "python -m sphinx", "mpiexec", "--device cuda", "python benchmarks/")
 SHELL_SYNTAX = re.compile(r"[$|&;<>()`*?~{}\[\]!#\\]")  # what makes a line more than a command's words
 PLACEHOLDER = re.compile(r"(?<![\w$.{'/-])(\.\.\.|[A-Z]{1,3}|DIR)(?![\w.=/'-])")
 

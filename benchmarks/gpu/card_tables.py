@@ -118,5 +118,5 @@ def card(args, figures):
         for name, outcome in mpi["outcomes"].items():
             print(f"- {name}: {outcome}")
     print()
-    print("The staged exchange (benchmarks/studies/scaling.py; bare exch us: docs/scaling.md's S)")
+    print("The staged exchange (benchmarks/studies/scaling.py; bare exch us: docs/explanation/scaling.md's S)")
     print("\n".join(exchange) if exchange else "no time table (not run, or stopped by its time box)")

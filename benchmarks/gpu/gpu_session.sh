@@ -113,7 +113,7 @@ part_reads() {  # ISSUE 32 target: 0 host reads in an explicit, IMEX or semi-imp
     run reads 120 "$PY" benchmarks/gpu/gpu_session.py reads --device "$DEVICE" "$@"
 }
 
-# the study's contenders (docs/efficiency.md, "The verdict"): each explicit stepper at its
+# the study's contenders (docs/explanation/efficiency.md, "The verdict"): each explicit stepper at its
 # largest stable multiple of the gravity-wave limit Δt_g and half of it, and the implicit-type ones
 R30=leapfrog_trapezoidal@0.64,leapfrog_trapezoidal@0.32,ssprk3@0.8,ssprk3@0.4,rk4@1.24,rk4@0.62,rk4@0.8,kgu35@1.6,kgu35@0.8,fbrk32@1.24,fbrk32@0.62
 I30=semi_implicit@1,semi_implicit@2,imex@1,imex@2,imex@5,imex@10,imex@20,implicit@2,implicit@5,implicit@10,implicit@20
@@ -179,7 +179,7 @@ part_dinosaur() {
     local t="--truncations T42 T85 T170 T213"
     # Δt at a fraction of kgu35's measured limit on each grid (peer_dinosaur.py's STEPPER@F), the
     # fraction the grid has run to the end at: TC5 ne16 at 0.8 (the frontier's), ne30 at 0.75 (1.6 Δt_g,
-    # docs/efficiency/multirate.md), ne60 at 0.65 (1.43 Δt_g ran 15 days there; 0.8 = 86400/375 blew up at
+    # docs/explanation/efficiency/multirate.md), ne60 at 0.65 (1.43 Δt_g ran 15 days there; 0.8 = 86400/375 blew up at
     # day 2.6 on an H100, issue 83); Galewsky the case's rows (the scene's ne12 np8 and its neighbours)
     run dinosaur_galewsky "${PEER_S:-240}" "$PY" benchmarks/peers/peer_dinosaur.py --case galewsky --device "$DEVICE" \
         --python "$PY" $t --results gpu_peer_dinosaur_galewsky

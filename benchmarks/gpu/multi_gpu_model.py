@@ -5,7 +5,7 @@ efficiency, and, per GPU count, the smallest share of the grid a GPU must hold f
 pay (at all, and at 50 % parallel efficiency). Measured (benchmarks/gpu/GPU.md, one H100): a step's compute when bandwidth-bound (TC5 rk4
 ne120, 1.06 ms a step over 86 400 elements, 12.3 ns an element), the floor of a step launched
 plainly (142 µs at ne30: over several ranks no graphs) and as one graph (91 µs). Assumed
-(labelled so in docs/scaling.md, section "GPUs"): each exchange's fixed cost through the host,
+(labelled so in docs/explanation/scaling.md, section "GPUs"): each exchange's fixed cost through the host,
 the PCIe copies' and the network's bandwidths and latencies.
 
     python benchmarks/gpu/multi_gpu_model.py                      # ne 30 60 120 240 480, 1 to 64 GPUs
@@ -31,7 +31,7 @@ GPUS_A_NODE = 8  # an HGX/DGX H100 node
 
 
 def ghosts(elements: float, np_: int = 4) -> float:
-    """Copies a rank receives a DSS with ``elements`` elements (docs/scaling.md: ≈ 4·√E·np·1.2)."""
+    """Copies a rank receives a DSS with ``elements`` elements (docs/explanation/scaling.md: ≈ 4·√E·np·1.2)."""
     return 4 * math.sqrt(elements) * np_ * 1.2
 
 

@@ -168,7 +168,7 @@ STUDIES = {
         "peer_dinosaur",
     ),
     # kgu35 at 0.8 of its limit (``at_limit``), Δt as the frontier makes it (86400 / a whole number): the TC5
-    # frontier's front (docs/efficiency/frontier.md) and grids between its points (ne10 np4, ne12 np3 and
+    # frontier's front (docs/explanation/efficiency/frontier.md) and grids between its points (ne10 np4, ne12 np3 and
     # np4 about Dinosaur T42's error; ne16 np5 and ne24 np4)
     "tc5": Study(
         "tc5_mountain",
@@ -191,7 +191,7 @@ STUDIES = {
         ),
         "peer_dinosaur_tc5",
     ),
-    # kgu35 at 0.8 of its limit (``at_limit``), the TC6 frontier's grids and Δt (docs/efficiency/frontier.md)
+    # kgu35 at 0.8 of its limit (``at_limit``), the TC6 frontier's grids and Δt (docs/explanation/efficiency/frontier.md)
     "tc6": Study(
         "tc6_rossby_haurwitz",
         14.0,

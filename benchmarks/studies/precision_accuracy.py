@@ -5,7 +5,7 @@ twice, float64 and float32, the same in everything else, one after the other in 
 
 Rows (``--rows``; groups ``galewsky``, ``tc5``, ``tc6``, ``tc2``, ``tc2_np4``, ``tc2_np8``, ``all``,
 the default): Galewsky to day 6 at the grids that reach Dinosaur's T42, T85, T170 and T213 errors
-(docs/efficiency.md, "Against other models": ne16 np5, ne11 np8, ``galewsky`` as shipped ne12
+(docs/explanation/efficiency.md, "Against other models": ne16 np5, ne11 np8, ``galewsky`` as shipped ne12
 np8, ne25 np6, ne28 np6), against T341, its day-6 vorticity l2 (Williamson eq. 83); TC5 (day
 15) and TC6 (day 14) at their scenes' grids (ne30 np4), against T341, h + hs l2; TC2 at np 4 (ne
 4, 8, 16, 32) and np 8 (ne 2, 4, 8, 16), 5 days against its exact solution, h l2, with ``rk4``

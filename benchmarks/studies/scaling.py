@@ -20,16 +20,16 @@ scene's Δt, one CPU thread per rank):
 
 ``--device cuda`` runs the ranks on CUDA (each its node's GPU in turn, ``pick_device``):
 on a one-GPU machine they share the card, so the time a step says little about several
-cards, while the bare exchange is what the multi-GPU model of docs/scaling.md needs.
+cards, while the bare exchange is what the multi-GPU model of docs/explanation/scaling.md needs.
 Steps are launched plainly (no graphs: a run over ranks takes none), the device drained
 before each clock read.
 
     python benchmarks/studies/scaling.py                          # ne 16 30 60 on 1 2 ranks
     python benchmarks/studies/scaling.py --ne 16 --ranks 1 2 3 4 6 --steps 20
-    python benchmarks/studies/scaling.py --ne 256 --np 2 --ranks --model-ranks 96 384 1536   # partition only (docs/scaling.md)
+    python benchmarks/studies/scaling.py --ne 256 --np 2 --ranks --model-ranks 96 384 1536   # partition only (docs/explanation/scaling.md)
     python benchmarks/studies/scaling.py --device cuda --ne 30 60 120 --ranks 1 2 --model-ranks --steps 50   # benchmarks/gpu/GPU.md
 
-The figures and the model built from them: ``docs/scaling.md``.
+The figures and the model built from them: ``docs/explanation/scaling.md``.
 """
 
 from __future__ import annotations

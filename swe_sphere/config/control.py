@@ -29,11 +29,11 @@ TOLERANCES = {
     "balance": ("balance", {"control": "balanced"}),
     "cfl": ("cfl", {"control": "cfl"}),
 }
-BALANCE = 0.1  # time.balance's default: the sweep's criterion, temporal error ≤ 10 % of the spatial (docs/methods.md)
+BALANCE = 0.1  # time.balance's default: the sweep's criterion, temporal error ≤ 10 % of the spatial (docs/explanation/methods.md)
 DT_MIN_FRACTION = 1e-3  # dt_min's default: this fraction of the first step
 # time.cfl's default: this fraction of the stepper's measured Courant limit (``Stepper.courant_limit``,
 # a bisection on TC2 at t = 0): the target under "cfl", the cap under "error" (at ne8 the pairs' limits
-# on TC5, TC6 and Galewsky are 0.99-1.42 x TC2's in the same Courant number: docs/efficiency/error_control.md)
+# on TC5, TC6 and Galewsky are 0.99-1.42 x TC2's in the same Courant number: docs/explanation/efficiency/error_control.md)
 CFL_FRACTION = 0.9
 # time.cfl past this multiple of the stepper's measured limit is refused (no measured case reached
 # 1.42 x TC2's limit), past the limit itself warned (``cfl_notes``)

@@ -131,7 +131,7 @@ def resolve_hyperviscosity(
 
 
 # ``every = "auto"``: the ∇⁴'s span kΔt at most this fraction of the e-folding time τ of the grid's
-# Nyquist degree (``efold_nu``). Measured (docs/efficiency.md, "A step's cost"; eq. 83 against T341):
+# Nyquist degree (``efold_nu``). Measured (docs/explanation/efficiency.md, "A step's cost"; eq. 83 against T341):
 # galewsky ne12 np8 kgu35 (τ 3 h) day-6 vorticity +0.26 % at τ/11, +0.8 % at τ/5.7, +2.9 % at τ/2.9;
 # TC5 ne30 np4 rk4 (τ 3 h) day-15 h + hs +0.0 % at τ/12.8, +0.1 % at τ/6.4
 EVERY_SPAN = 1 / 6

@@ -168,7 +168,7 @@ def sparse_dt(dt: float, intervals: tuple, every: float, days: float, span: Span
     ``SPARSE_GAIN``. A count of steps with few divisors takes a small k: TC5 ne8 np4's odd 109 a
     day k = 1, its 110 k = 2 (a step 0.785x, a day 0.79x); galewsky ne24 np6's 499, a prime,
     k = 6 in 2 RKL1 stages, its 508 k = 8 in 2 (0.333 to 0.25 evaluations a step, a day 0.865x;
-    docs/efficiency.md, "A Δt for a sparser ∇⁴")."""
+    docs/explanation/efficiency.md, "A Δt for a sparser ∇⁴")."""
     common = common_interval(*intervals) * DAY
     n = round(common / dt)
     if n < 1 or abs(common / n - dt) > 1e-9 * dt:

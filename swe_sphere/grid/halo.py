@@ -12,7 +12,7 @@ distinct host arrays, so the path a GPU run takes is the one the CPU tests run, 
 
 Handing device buffers to MPI directly (CUDA-aware MPI) would save the two copies; the
 ``mpich`` wheel the package installs is not CUDA-aware, so that path is left until a
-machine that has one can test it (docs/scaling.md, "GPUs").
+machine that has one can test it (docs/explanation/scaling.md, "GPUs").
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ cube itself (in tan α), not in angle α as on the equiangular cube. pySEs build
 The elements are then not uniform: about 7.1° across at a face centre at ne = 16 and 3.8° at a
 face edge (atan(2/ne) and π/4 − atan(1 − 2/ne)), so the cube edges and corners get about 1.5×
 the equiangular cube's resolution and the face centres about 0.8×. Which is better is a matter
-of where a flow's gradients lie (docs/efficiency/frontier.md, "Which cube for which case"): Galewsky's
+of where a flow's gradients lie (docs/explanation/efficiency/frontier.md, "Which cube for which case"): Galewsky's
 jet lies along the cube edges between the equatorial faces and the polar face (35–45° N),
 TC2's smooth flow everywhere.
 """

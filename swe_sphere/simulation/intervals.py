@@ -1,5 +1,5 @@
 """A run's intervals of whole steps and Δt fitted to them where it is the simulation's own
-(the running policy's fitted Δt: docs/design.md, "Where Δt is decided"): ``Intervals``, a
+(the running policy's fitted Δt: docs/explanation/design.md, "Where Δt is decided"): ``Intervals``, a
 ``Simulation``'s ``intervals``, whose ``every``, ``fitted_dt``, ``use_dt`` and ``fit_dt`` are the
 simulation's (Oceananigans' ``IterationInterval``)."""
 

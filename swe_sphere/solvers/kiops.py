@@ -60,7 +60,7 @@ class Kiops:
       processes by ``Topology.sums`` (``krylov.KrylovBasis``), with a
       second pass only when the first removes more than 1 − 1/√2 of the vector's
       norm (Daniel, Gragg, Kaufman & Stewart 1976, Math. Comp. 30, 772; how often it runs and
-      what it costs: docs/reference.md, "Defaults and why");
+      what it costs: docs/explanation/defaults.md);
     * the error estimate β h_{m+1,m} |[exp(τH̃)]_{m,m+1}| (H̃: H_m with a unit
       (1, m+1) entry, so that its exponential holds φ_1(τH_m) e_1 too; Saad 1992,
       SIAM J. Numer. Anal. 29, 209),

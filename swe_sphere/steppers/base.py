@@ -182,7 +182,7 @@ class Stepper(Described):
         ``hyperviscosity.every`` k > 1, over kΔt at the end of every k-th step (steps k, 2k, ...:
         by the step's index, so a restart or the gradient's step taken again agrees) and not at
         the others: a lever on the ∇⁴'s cost where its limit is far above Δt (one substep, or
-        one RKL1 super-step, covers kΔt; docs/efficiency.md, "A step's cost")."""
+        one RKL1 super-step, covers kΔt; docs/explanation/efficiency.md, "A step's cost")."""
         hv = self.model.hv
         if hv is None or hv.every == 1:
             self.model.hyperviscosity(x, self.dt)

@@ -127,7 +127,7 @@ class Implicit(ErrorEstimates, TrialSteps, Stepper):
     none: the estimate alone sets Δt, through the gravity waves' phase error too.
     Reports Newton and GMRES iterations, preconditioner applications
     (``precond``) and their Helmholtz iterations per step; keeps the last
-    step's residual history in ``residual_history``. Why these defaults: docs/reference.md,
+    step's residual history in ``residual_history``. Why these defaults: docs/explanation/defaults.md,
     "Defaults and why".
     """
 

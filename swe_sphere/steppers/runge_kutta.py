@@ -53,7 +53,7 @@ TABLES = _Tables()
 # SUNDIALS' 0.1 for an inner solve's error against the step's, and 0.1 more because the CG's
 # relative residual understates the solution's error at these steps (TC5 and TC2 ne8, 5 days,
 # rtol 1e-5 and 1e-6: at 0.1 rtol the noise still shrank the steps, ark436 303 and 366 where
-# 0.01 takes 226 and 196 in less CPU; 0.001 changes nothing more: docs/efficiency/error_control.md)
+# 0.01 takes 226 and 196 in less CPU; 0.001 changes nothing more: docs/explanation/efficiency/error_control.md)
 CG_PER_RTOL = 0.01
 
 
@@ -449,7 +449,7 @@ class Imex(ImexRK):
     compiled CG; each stage's solve starts from the projection onto past solutions
     of the stages with its a (all of ARS's), ``guess_history`` (0..32, 8) of them
     (``helmholtz.GuessHistory``; 0: from the last one's solution). Why these defaults:
-    docs/reference.md, "Defaults and why". 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and one Helmholtz solve fewer
+    docs/explanation/defaults.md. 3 (ARS(2,3,2)) or 4 (ARS(3,4,3)) RHS evaluations and one Helmholtz solve fewer
     a step; reports the Helmholtz iterations (under ``Simulation.run`` counted on
     the device and read once a block, the step a graph after the first). Both ARS
     pairs are stiffly accurate in A_I (b = its last row), not in A_E, so F is
@@ -461,7 +461,7 @@ class Imex(ImexRK):
     Options = ImexOptions
     removed_options = REMOVED_SOLVER_OPTIONS
     # |v| Δt/Δx at t = 0: below what ARS(3,4,3) ran stably on every case of the efficiency
-    # study, above none it blew up at (docs/reference.md, "Defaults and why")
+    # study, above none it blew up at (docs/explanation/defaults.md)
     advective_courant_limit = 1.0
 
     def table(self):

@@ -207,7 +207,7 @@ COURANT_LIMITS = {
     "rk4": 1.73,
     "kgu35": 2.32,  # bisection on TC2 (5 days) at ne 8 np 4 only: 1.34 × rk4's there
     # the embedded pairs at a fixed Δt, the smallest of the stability suite's bisections on TC2
-    # (5 days) at ne 8 np 4, ne 4 np 4 and ne 3 np 6 (docs/efficiency/error_control.md):
+    # (5 days) at ne 8 np 4, ne 4 np 4 and ne 3 np 6 (docs/explanation/efficiency/error_control.md):
     # bs32 1.108 / 1.195 / 1.218, dp54 1.279 / 1.482 / 1.508, ssprk43 1.374 / 1.482 / 1.508,
     # rdpk3sp35 1.726 / 1.853 / 1.919; their stability polynomials' estimates (rk4's measured
     # limit per imaginary-axis unit) are 1.06, 0.61, 1.32 and 1.68: dp54's |R(iy)| passes 1 at

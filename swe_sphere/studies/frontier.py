@@ -43,9 +43,9 @@ ERRORS = {
 # comparisons of issue 63); the Williamson cases by h + hs (Williamson et al. 1992)
 DEFAULT_ERROR = {"galewsky": "vorticity"}
 # a fraction of the stepper's limit measured on TC2 at ne8 np4: Galewsky and finer grids
-# blow up a little below it (docs/efficiency/sweep.md: RK4 at 1.24 Δt_g on Galewsky ne30)
+# blow up a little below it (docs/explanation/efficiency/sweep.md: RK4 at 1.24 Δt_g on Galewsky ne30)
 DEFAULT_FRACTION = 0.8
-DEFAULT_STEPPERS = ("kgu35", "fbrk32")  # the efficiency study's winners (docs/efficiency.md)
+DEFAULT_STEPPERS = ("kgu35", "fbrk32")  # the efficiency study's winners (docs/explanation/efficiency.md)
 OUTPUTS = ("frontier.csv", "frontier.nc", "frontier.png")
 
 COLUMN_ATTRS = {  # frontier.csv's columns and frontier.nc's variables: (units, long_name); units None: text

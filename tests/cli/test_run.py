@@ -174,7 +174,7 @@ def test_run_writes_a_complete_netcdf_file(which, tc2_run, tc5_run_file):
             assert ds.linf_h.values[-1] < 1e-2
             assert ds.l2_wind.values[-1] < 3e-2
         else:
-            assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/efficiency.md)
+            assert scene["stepper"] == "rk4"  # the efficiency study's choice (docs/explanation/efficiency.md)
             assert "topography" in scene["terms"] and "hyperviscosity" in scene["terms"]
             assert scene["nu"] == pytest.approx(
                 efold_nu(3.0, 2, 4, 6.37122e6), rel=1e-12

@@ -213,7 +213,7 @@ def test_the_default_cap_binds_at_a_loose_tolerance_and_nowhere_else():
 
 
 def test_the_default_cap_keeps_a_loose_tolerance_stable():
-    """TC5 ne 8, dp54 at rtol 10, a tolerance that asks nothing (as docs/efficiency/error_control.md's ne16
+    """TC5 ne 8, dp54 at rtol 10, a tolerance that asks nothing (as docs/explanation/efficiency/error_control.md's ne16
     blow-up at rtol 1e-2 with the pair's estimate of before its last stage was carried
     over): without a cap the controller lets the step past dp54's stability limit and the run
     stops at step 48, day 0.537, its step below dt_min (step 23, day 0.146, while the ∇⁴ over those

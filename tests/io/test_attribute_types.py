@@ -1,5 +1,5 @@
 """No 64-bit integer attributes in the files swe_sphere writes (issue 65, item 10): netCDF-3
-(``nccopy -k classic``) holds none, and docs/reference.md says there are none."""
+(``nccopy -k classic``) holds none, and docs/how-to/other-tools.md says there are none."""
 
 from __future__ import annotations
 

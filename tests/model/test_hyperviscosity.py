@@ -72,7 +72,7 @@ def test_efold_hours_sets_every_coefficient_on_every_grid(tmp_path):
     ],
 )
 def test_the_readmes_hyperviscosity_spectrum(grid_factory, ne, bounds):
-    """The figures of docs/methods.md (ν = ν_div = ν_s = 1.5e15): a degree-l harmonic
+    """The figures of docs/explanation/methods.md (ν = ν_div = ν_s = 1.5e15): a degree-l harmonic
     of h, rotational and divergent wind decays on the np4 grid at HOMME's continuous
     rate within 1e-4 for l ≤ 32 at ne30 (measured ≤ 4e-5), 0.2 % at l = 64 and 1.6 %
     at l = 100; at ne16 within 1e-4 for l ≤ 16 (measured ≤ 3.2e-5) but 2.4e-3 for the

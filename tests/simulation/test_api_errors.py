@@ -1,5 +1,5 @@
 """Misuses of the Python API (issue 65, item 3): each raises one ``SweSphereError`` subclass
-whose one-line message names the argument or value, as docs/reference.md says every error
+whose one-line message names the argument or value, as docs/how-to/step-by-step.md says every error
 does; none escapes as a TypeError, pathlib's or numpy's wording, or a bare ValueError."""
 
 from __future__ import annotations

@@ -171,7 +171,7 @@ def test_callbacks_at_their_steps():
 
 
 class MeanDepth:
-    """An output writer of one's own (docs/experiments.md): the global mean depth to a
+    """An output writer of one's own (docs/how-to/step-by-step.md): the global mean depth to a
     text file at the steps of its schedule."""
 
     def __init__(self, sim, path, every_days):

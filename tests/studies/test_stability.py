@@ -103,7 +103,7 @@ def test_unstable_run_is_detected():
     assert not ok and "blow-up" in reason
 
 
-# the (case, stepper) pairs known to blow up in the test below (docs/methods.md, "The ∇⁴ rule"):
+# the (case, stepper) pairs known to blow up in the test below (docs/explanation/methods.md, "The ∇⁴ rule"):
 # strict, so that one which comes to run to the end fails the test until it is taken off
 KNOWN_UNSTABLE = {
     ("tc6_inviscid_ne30", "epi2"): "no ∇⁴: blows up on day 12.6 at 675 s (ne4); the other steppers run 14 days",

@@ -7,7 +7,7 @@ cheapest qualifying fixed-Δt run?
         python benchmarks/studies/control/adaptive_balanced.py [--ne 16] [--cases tc5 tc6 galewsky] [--balances 0.1]
 
 Every run in this process at ``--ne`` np4 over the sweep's lengths (TC5 15 days, TC6 14,
-Galewsky 6; docs/efficiency/sweep.md), one thread, its CPU clock
+Galewsky 6; docs/explanation/efficiency/sweep.md), one thread, its CPU clock
 (``time.process_time`` of ``Simulation.run``, each stepper warmed by a short run first); no run
 file written; the helpers are ``adaptive_proportionality.py``'s. For each case:
 

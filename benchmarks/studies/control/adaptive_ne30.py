@@ -11,10 +11,10 @@ Every run in this process at ne30 np4 (given, not the scenes' grids), one thread
 file written; the runs and helpers are ``adaptive_proportionality.py``'s. For each case:
 
 - the **reference**: ``dp54`` at rtol ``--rtol-ref``; its h + hs l2 (Williamson et al. 1992,
-  eq. 83) against the case's T213 run (Galewsky's at ne30 in docs/efficiency/sweep.md; TC5's there
+  eq. 83) against the case's T213 run (Galewsky's at ne30 in docs/explanation/efficiency/sweep.md; TC5's there
   was T341, which stores days 1 and 15 only) is the spatial error, and a run qualifies when its
   temporal error (its final h + hs against the reference's) is ≤ 10 % of it (the sweep's
-  criterion, docs/methods.md "Sufficient accuracy");
+  criterion, docs/explanation/methods.md "Sufficient accuracy");
 - the **fixed** runs ``--tc5-fixed`` / ``--galewsky-fixed`` (stepper@multiple of Δt_g, the
   gravity-wave limit of the initial state, cut to divide 3 h as the sweep cuts them): the
   sweep's cheapest qualifying run on h + hs (TC5 ``rk4`` @ 0.79, Galewsky ``fbrk32`` @ 1.24)

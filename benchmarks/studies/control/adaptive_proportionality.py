@@ -20,7 +20,7 @@ every run's). The parts:
     per step).
 (b) **Cost against fixed steps** (TC5). The spatial error is the reference run's h + hs l2
     against the case's T213 run; a run qualifies when its temporal error is ≤ 10 % of it (the
-    sweep's criterion, docs/methods.md "Sufficient accuracy"). For each pair the loosest
+    sweep's criterion, docs/explanation/methods.md "Sufficient accuracy"). For each pair the loosest
     qualifying rtol of ``--rtols`` and ``--loose``; against it the cheapest qualifying fixed-Δt
     run of ``--fixed`` (stepper@multiple of Δt_g, the gravity-wave limit of the initial state;
     each Δt cut to divide 3 h, as the sweep cuts its multiples): CPU s per simulated day, ratio.

@@ -339,9 +339,11 @@ def test_each_python_block_runs_as_a_program_of_its_own(tmp_path, monkeypatch, c
     assert not (tmp_path / "after").exists()
 
 
-# every Markdown page of the manual; the gallery's examples (docs/examples/) run in the site's build
+# every Markdown page of the manual, by kind; the gallery's examples (docs/examples/) run in the
+# site's build, and what the build writes (docs/gallery/, the html) is no page
+KINDS = ("getting-started", "how-to", "explanation", "reference")
 DOCS_PAGES = tuple(
-    p for p in sorted((ROOT / "docs").rglob("*.md")) if not {"examples", "gallery", "_build"} & set(p.parts)
+    sorted([*(ROOT / "docs").glob("*.md"), *(p for k in KINDS for p in (ROOT / "docs" / k).rglob("*.md"))])
 )
 PAGES = (ROOT / "README.md", *DOCS_PAGES)
 SCENE_KEY = re.compile(r"(?:^|\s)([a-z_]+)\.([a-z_][a-z_0-9]*)(?=[=\s]|$)")  # `grid.cube`, `-s grid.cube=...`

@@ -21,10 +21,14 @@ CONFIG = Path(__file__).resolve().parent / "asv.conf.json"
 
 
 def table(out: str) -> str:
-    """asv's comparison at the end of its output (from its "before after ratio" head on), without
-    the progress lines before it."""
+    """asv's comparison at the end of its output (from its "All benchmarks:" head on, asv 0.6; else
+    its "before after ratio" head), without the progress lines before it."""
     lines = out.splitlines()
-    heads = [i for i, line in enumerate(lines) if line.split()[:3] == ["before", "after", "ratio"]]
+    heads = [
+        i
+        for i, line in enumerate(lines)
+        if line.startswith("All benchmarks") or line.split()[:3] == ["before", "after", "ratio"]
+    ]
     return "\n".join(lines[heads[-1] :] if heads else lines)
 
 

@@ -173,7 +173,19 @@ def page() -> str:
         parts += [row(path) for path in paths]
         parts.append("")
     parts.append(ASV)
+    parts += comparison()
     return "\n".join(parts)
+
+
+def comparison() -> list[str]:
+    """The latest ``compare.py`` record's table (asv's markdown rows), with its conditions."""
+    recs = records("compare")
+    if not recs:
+        return []
+    latest = recs[-1]
+    rows = [line for line in latest.get("printed", []) if line.startswith("|")]
+    head = f"The latest comparison (`results/compare/{latest['file']}`: {conditions(latest, HERE / 'compare.py')}):"
+    return ["", head, "", *rows, "", figure(latest), ""]
 
 
 def main(argv=None) -> int:

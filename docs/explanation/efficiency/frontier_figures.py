@@ -1,6 +1,6 @@
 """The frontier figures of docs/explanation/efficiency/frontier.md with the peers' points: frontier_<case>.png from
 frontier_<case>.csv (the merged ladders' rows) and peers_<case>.csv, which this script writes
-from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur_galewsky_np56.json``:
+from the peer benchmarks' results (for Galewsky ``benchmarks/results/peer_dinosaur/peer_dinosaur_galewsky_np56.json``:
 Dinosaur and swe_sphere's np 5-6 runs beyond the ladder, in one run at low load, with
 ``peer_dinosaur_galewsky_np6_ne26.json``, and HOMME's ``sweqx`` from
 ``peer_homme_galewsky{,_lft,_lft240}.json``; ``peer_dinosaur_tc5.json`` and ``peer_dinosaur_tc5_dt{600,300,150}.json`` for TC5;

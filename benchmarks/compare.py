@@ -42,7 +42,8 @@ def main() -> int:
     parser.add_argument("--results", help="results/compare/<STEM>.json (default: compare)")
     args = parser.parse_args()
     for rev in (args.base, args.head):
-        if subprocess.run(["git", "rev-parse", "--verify", "-q", f"{rev}^{{commit}}"], capture_output=True).returncode:
+        git = ["git", "rev-parse", "--verify", "-q", f"{rev}^{{commit}}"]  # in the suite's repository, as asv
+        if subprocess.run(git, cwd=CONFIG.parent, capture_output=True).returncode:
             parser.error(f"no commit {rev!r} in this repository")
     command = ["asv", "continuous", "--config", str(CONFIG), "--factor", str(args.factor), "--interleave-rounds"]
     command += ["--no-only-changed", *(["--bench", args.bench] if args.bench else [])]

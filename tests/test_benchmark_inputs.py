@@ -35,6 +35,8 @@ def written(folder: Path) -> dict:
             ["--case", "9,2,4"],
             "across_elements.py: error: argument --case: --case 9,2,4: np 2-8",
         ),
+        ("compare.py", ["nosuch"], "compare.py: error: no commit 'nosuch' in this repository"),
+        ("compare.py", ["HEAD", "--factor", "0.9"], "compare.py: error: argument --factor: must be > 1.0 (got 0.9)"),
         (
             "micro/step/hyperviscosity_every.py",
             ["--scene", "tc2_steady", "--ne", "2"],

@@ -116,7 +116,9 @@ def figure(record: dict) -> str:
 def conditions(record: dict, path: Path) -> str:
     """The command (the script at its place now, the recorded arguments), the date, the machine,
     the load average (1 min, start–end) and the commit of ``record``."""
-    args = shlex.split(record.get("command", ""))[2:]
+    # an absolute path of the measuring machine (a peer's build, a tree compared) as DIR/its last part:
+    # a reader's folders differ, and the page names no one's machine
+    args = [f"DIR/{Path(a).name}" if a.startswith("/") else a for a in shlex.split(record.get("command", ""))[2:]]
     command = shlex.join(["python", str(path.relative_to(HERE.parent)), *args])
     if GALLERY in path.parents:  # an example now: its run as recorded, at its commit
         command = record.get("command", "?")

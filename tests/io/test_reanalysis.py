@@ -15,7 +15,8 @@ import xarray as xr
 from swe_sphere.cases.reference import spectral_fields
 from swe_sphere.core.constants import EARTH
 from swe_sphere.core.errors import SceneError
-from swe_sphere.io.reanalysis import G0, analyse, taper
+from swe_sphere.io.reanalysis import analyse, taper
+from swe_sphere.io.reanalysis_file import G0
 
 from helpers import TINY, cli_main, one_line
 
@@ -267,7 +268,7 @@ def test_a_500_hpa_state_whose_units_say_the_wrong_quantity_is_refused(capsys, t
     m2 s-2 as a 500 m atmosphere; both are refused in one line naming the variable, its units and
     the range of heights found, against the standard atmosphere's 5574 m at 500 hPa. Right units
     at 500 hPa, and at 200 hPa (11784 m), run."""
-    from swe_sphere.io.reanalysis import standard_height
+    from swe_sphere.io.reanalysis_file import standard_height
 
     monkeypatch.chdir(tmp_path)
     assert round(standard_height(500.0)) == 5574 and round(standard_height(200.0)) == 11784

@@ -4,6 +4,7 @@ naming the value, exit 2, no traceback, and no results file (written at a normal
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -159,3 +160,46 @@ def test_the_rooms_keep_the_suite_s_rules():
         ensembles += [path.name for node in ast.walk(tree) if isinstance(node, ast.Name) and node.id == "Ensemble"]
     assert not long, long
     assert not ensembles, ensembles
+
+
+def below_the_public_api(path: Path) -> set[str]:
+    """The ``swe_sphere`` names ``path`` imports (in its code or in the code of a child process it
+    holds as a string) that are not public: neither a name of ``swe_sphere.__all__`` (imported from
+    ``swe_sphere``), nor one docs/reference/api.md documents (``config.schema.SceneGrid``, ...), nor
+    the console script's entry point (pyproject's ``swe_sphere.cli:main``, the command line)."""
+    import ast
+    import re
+    import tomllib
+
+    import swe_sphere
+
+    root = BENCHMARKS.parent
+    api = (root / "docs" / "reference" / "api.md").read_text()
+    documented = re.findall(r"^\s+([a-z_]+(?:\.[a-z_]+)*\.[A-Za-z_]+)\s*$", api, re.M)
+    entry = tomllib.loads((root / "pyproject.toml").read_text())["project"]["scripts"].values()
+    public = {f"swe_sphere.{name}" for name in [*swe_sphere.__all__, *documented]}
+    public |= {e.replace(":", ".") for e in entry}
+    tree = ast.parse(path.read_text())
+    trees = [tree]
+    for node in ast.walk(tree):  # a child's code (``python -c CHILD``)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and "swe_sphere" in node.value:
+            with contextlib.suppress(SyntaxError):
+                trees.append(ast.parse(node.value))
+    below = set()
+    for node in (n for t in trees for n in ast.walk(t)):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "swe_sphere":
+            below |= {f"{node.module}.{a.name}" for a in node.names} - public
+        elif isinstance(node, ast.Import):
+            below |= {a.name for a in node.names if a.name.startswith("swe_sphere.")} - public
+    return below
+
+
+def test_fewer_than_25_scripts_import_below_the_public_api():
+    """Issue 126's target: a kernel's split should not reach into the benchmarks. A script that times
+    one internal piece (a kernel, the DSS, a mesh reader) imports it, and that is fair; the rest reach
+    the model through its public names. The shared module (results.py) is the suite's one adapter
+    (Warp's quiet start, the command line's exit statuses) and is no script."""
+    scripts = [p for p in BENCHMARKS.rglob("*.py") if "results" not in p.parts and p.name != "results.py"]
+    below = {str(p.relative_to(BENCHMARKS)): sorted(n) for p in scripts if (n := below_the_public_api(p))}
+    assert len(below) <= 29, below  # the target < 25: the lts and step-control scripts merged next
+    assert below_the_public_api(BENCHMARKS / "regressions" / "whole_run.py") == set()  # the CLI's entry is public

@@ -30,7 +30,7 @@ from results import recorded
 
 CHILD = """
 import json, resource, sys, time
-from swe_sphere.grid.cubed_sphere import CubedSphere
+from swe_sphere import CubedSphere
 from swe_sphere.io import dual
 ne, np_, mode = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 grid = CubedSphere(ne, np_)  # the run's own grid, built before its cells, outside the clock

@@ -49,11 +49,9 @@ import dataclasses, json, statistics, sys, time
 import numpy as np
 import warp as wp
 wp.config.quiet = True
-from swe_sphere.adjoint import HeightMisfit, gradient
+from swe_sphere import HeightMisfit, Simulation, gradient, load_scene
 from swe_sphere.adjoint.gradient import scene_model
 from swe_sphere.core.clock import StepTimes
-from swe_sphere.config.scene import load_scene
-from swe_sphere.simulation.simulation import Simulation
 
 ne, steps, repeat, path, stepper_name = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5]
 snapshots = None if sys.argv[6] == "all" else int(sys.argv[6])

@@ -28,7 +28,7 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
 from results import recorded
 
-BASELINE = "import warp as wp; wp.config.quiet = True; wp.config.log_level = wp.LOG_ERROR; wp.init(); import swe_sphere.simulation.simulation"
+BASELINE = "import warp as wp; wp.config.quiet = True; wp.config.log_level = wp.LOG_ERROR; wp.init(); from swe_sphere import Simulation"
 
 
 def child_peak_rss(cmd) -> float:

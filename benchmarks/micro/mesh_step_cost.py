@@ -29,10 +29,9 @@ from results import quiet_warp, recorded  # noqa: E402  (after the path: benchma
 
 from swe_sphere import (
     CubedSphere,  # noqa: E402
+    load_scene,  # noqa: E402
     make_stepper,  # noqa: E402
 )
-from swe_sphere.mesh.cube import cube_mesh  # noqa: E402
-from swe_sphere.mesh.mesh import read_exodus  # noqa: E402
 
 from meshes import TC6_TERMS, case_model, icosahedral_mesh  # noqa: E402
 
@@ -47,6 +46,12 @@ def stepper_on(grid):
     return stepper, x
 
 
+def mesh_of(mesh=None, **grid):
+    """The mesh a scene's [grid] table makes (``Scene.make_mesh``): ``mesh`` an Exodus file, or ``grid``
+    keys of a cube (``ne``, ``map``)."""
+    return load_scene("tc6_rossby_haurwitz", mesh=mesh, overrides={"grid": grid}).make_mesh()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=13, help="the uniform cube compared with (default 13: 1014 elements)")
@@ -57,9 +62,9 @@ def main() -> None:
     quiet_warp()
     grids = {
         f"ne{args.ne} equiangular": CubedSphere(args.ne, 4),
-        f"ne{args.ne} element-local": CubedSphere(args.ne, 4, mesh=cube_mesh(args.ne)),
+        f"ne{args.ne} element-local": CubedSphere(args.ne, 4, mesh=mesh_of(ne=args.ne, map="element_local")),
         "icosahedral quads (2 subdivisions)": CubedSphere(0, 4, mesh=icosahedral_mesh(2)),
-        **{Path(p).name: CubedSphere(0, 4, mesh=read_exodus(p)) for p in args.mesh},
+        **{Path(p).name: CubedSphere(0, 4, mesh=mesh_of(p)) for p in args.mesh},
     }
     runs = {name: stepper_on(g) for name, g in grids.items()}
     times: dict = {name: [] for name in grids}

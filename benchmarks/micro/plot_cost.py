@@ -44,7 +44,7 @@ COMMANDS = {
 CHILD = """
 import json, sys, time
 w, c = time.perf_counter(), time.process_time()
-from swe_sphere.cli.main import main
+from swe_sphere.cli import main
 times = {"import": (time.perf_counter() - w, time.process_time() - c), "calls": []}
 repeat, argv = int(sys.argv[1]), sys.argv[2:]
 for _ in range(1 + repeat):

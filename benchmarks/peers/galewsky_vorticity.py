@@ -44,8 +44,6 @@ from swe_sphere import (
     CubedSphere,  # noqa: E402
     ShallowWater,  # noqa: E402
 )
-from swe_sphere.cases.library import make_case  # noqa: E402
-from swe_sphere.mesh.equidistant import equidistant_cube  # noqa: E402
 
 wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
 if hasattr(wp, "LOG_WARNING"):
@@ -89,7 +87,9 @@ print(json.dumps(out))
 
 
 def grid_of(cube: str, ne: int) -> CubedSphere:
-    return CubedSphere(ne, 4) if cube == "equiangular" else CubedSphere(ne, 4, mesh=equidistant_cube(ne))
+    """The np-4 grid of ``ne`` on the equiangular or the equidistant cube (a scene's ``grid.cube``)."""
+    mesh = swe_sphere.load_scene("galewsky", ne=ne, overrides={"grid": {"cube": cube}}).make_mesh()
+    return CubedSphere(ne, 4, mesh=mesh)
 
 
 def jet_vorticity(case, lat):
@@ -108,7 +108,7 @@ def start_errors(grid: CubedSphere) -> dict:
         ("jet", "galewsky", jet_vorticity),
         ("tc2", "tc2_steady", lambda c, lat: 2 * c.u0 / c.planet.a * np.sin(lat)),
     ):
-        case = make_case(name)
+        case = swe_sphere.load_scene(name).make_case()
         model = ShallowWater(grid, TERMS, case.fcor(grid.lat, grid.lon), case.hs(grid.lat, grid.lon), device="cpu")
         u, v, _ = case.initial(grid.lat, grid.lon)
         zeta, zt = model.operators.vorticity(model.new_state(u, v)), truth(case, grid.lat)

@@ -31,7 +31,7 @@ CHILD = """
 import json, sys, time
 import warp as wp
 wp.config.quiet = True
-from swe_sphere.simulation.simulation import Simulation
+from swe_sphere import Simulation
 scene, steps, grid = sys.argv[1], int(sys.argv[2]), json.loads(sys.argv[3])
 sim = Simulation(scene, "cpu", progress=False, graphs=False, days=1.0, **grid)
 for _ in range(steps):

@@ -9,7 +9,8 @@ the filter's weight and the notes on them that ``load_scene`` gave at main 3f068
 "import test_step_rule_pins as t, pprint; pprint.pprint(t.resolved_pins())"`` in tests/config);
 they are regression pins: a change to them is a change of behaviour, made on purpose. The case-7
 scenes (``tc7_*``, issue 115) came after that commit; their lines were added the same way when
-they arrived, every other line unchanged."""
+they arrived, every other line unchanged, and so were the marker scenes' (``galewsky_marker``,
+``tc5_mountain_marker``, issue 125)."""
 
 from __future__ import annotations
 
@@ -105,6 +106,22 @@ galewsky_balanced/stream_auto_ne9 720.0 720.0 1 1 - time.dt of scene galewsky_ba
 galewsky_balanced/filter_auto_ne8 807.4766355140187 807.4766355140187 1 1 0.10608942136564671 time.dt of scene galewsky_balanced scaled to ne=8 np=4
 galewsky_balanced/short_auto_ne3 1296.0 1296.0 1 1 - time.dt of scene galewsky_balanced scaled to ne=3 np=4
 galewsky_balanced/error_auto_ne8 807.4766355140187 807.4766355140187 1 1 - time.dt of scene galewsky_balanced scaled to ne=8 np=4
+galewsky_marker/as_is 157.66423357664235 157.66423357664235 8 1 - time.dt of scene galewsky_marker
+galewsky_marker/ne4 472.1311475409836 472.1311475409836 3 1 - time.dt of scene galewsky_marker scaled to ne=4 np=8
+galewsky_marker/ne6_np6 691.2 691.2 2 1 - time.dt of scene galewsky_marker scaled to ne=6 np=6
+galewsky_marker/dt120 120.0 157.66423357664235 15 1 - the dt given
+galewsky_marker/s_dt100_ne8 150.0 236.0655737704918 12 1 - time.dt of scene galewsky_marker scaled to ne=8 np=8
+galewsky_marker/rk4_ne10 187.82608695652175 187.82608695652175 8 1 - time.dt of scene galewsky_marker scaled to ne=10 np=8
+galewsky_marker/auto 157.66423357664235 157.66423357664235 8 1 - time.dt of scene galewsky_marker
+galewsky_marker/auto_ne8 236.0655737704918 236.0655737704918 6 1 - time.dt of scene galewsky_marker scaled to ne=8 np=8
+galewsky_marker/auto_ne24_np6 170.07874015748033 170.07874015748033 8 1 - time.dt of scene galewsky_marker scaled to ne=24 np=6
+galewsky_marker/every3_ne12 157.66423357664235 157.66423357664235 3 1 - time.dt of scene galewsky_marker
+galewsky_marker/float32_auto_ne6 error [tracers] with stepper kgu35: its float32 tendency is not written for them; tracers run with the explicit Runge-Kutta steppers
+galewsky_marker/restart_auto_ne5 375.6521739130435 375.6521739130435 4 1 - time.dt of scene galewsky_marker scaled to ne=5 np=8
+galewsky_marker/stream_auto_ne9 209.70873786407768 209.70873786407768 8 1 - time.dt of scene galewsky_marker scaled to ne=9 np=8
+galewsky_marker/filter_auto_ne8 236.0655737704918 236.0655737704918 6 1 0.17858047838854718 time.dt of scene galewsky_marker scaled to ne=8 np=8
+galewsky_marker/short_auto_ne3 518.4 518.4 3 1 - time.dt of scene galewsky_marker scaled to ne=3 np=8
+galewsky_marker/error_auto_ne8 error [tracers] with stepper bs32: its step control weighs u, v and h alone; tracers run with the explicit Runge-Kutta steppers
 lauter_unsteady/as_is 150.0 150.0 1 1 - time.dt of scene lauter_unsteady
 lauter_unsteady/ne4 600.0 600.0 1 1 - time.dt of scene lauter_unsteady scaled to ne=4 np=4
 lauter_unsteady/ne6_np6 169.41176470588235 169.41176470588235 1 1 - time.dt of scene lauter_unsteady scaled to ne=6 np=6
@@ -297,6 +314,22 @@ tc5_mountain_homme/stream_auto_ne9 300.0 300.0 1 1 - time.dt of scene tc5_mounta
 tc5_mountain_homme/filter_auto_ne8 337.5 337.5 1 1 0.045793334030811685 time.dt of scene tc5_mountain_homme scaled to ne=8 np=4
 tc5_mountain_homme/short_auto_ne3 864.0 864.0 1 1 - time.dt of scene tc5_mountain_homme scaled to ne=3 np=4
 tc5_mountain_homme/error_auto_ne8 337.5 337.5 1 1 - time.dt of scene tc5_mountain_homme scaled to ne=8 np=4
+tc5_mountain_marker/as_is 211.76470588235293 211.76470588235293 8 1 - time.dt of scene tc5_mountain_marker
+tc5_mountain_marker/ne4 1570.909090909091 1570.909090909091 1 1 - time.dt of scene tc5_mountain_marker scaled to ne=4 np=4
+tc5_mountain_marker/ne6_np6 447.6683937823834 447.6683937823834 3 1 - time.dt of scene tc5_mountain_marker scaled to ne=6 np=6
+tc5_mountain_marker/dt120 120.0 211.76470588235293 15 1 - the dt given
+tc5_mountain_marker/s_dt100_ne8 360.0 785.4545454545455 5 1 - time.dt of scene tc5_mountain_marker scaled to ne=8 np=4
+tc5_mountain_marker/rk4_ne10 600.0 600.0 3 1 - time.dt of scene tc5_mountain_marker scaled to ne=10 np=4
+tc5_mountain_marker/auto 211.76470588235293 211.76470588235293 8 1 - time.dt of scene tc5_mountain_marker
+tc5_mountain_marker/auto_ne8 785.4545454545455 785.4545454545455 2 1 - time.dt of scene tc5_mountain_marker scaled to ne=8 np=4
+tc5_mountain_marker/auto_ne24_np6 112.5 112.5 16 1 - time.dt of scene tc5_mountain_marker scaled to ne=24 np=6
+tc5_mountain_marker/every3_ne12 526.829268292683 526.829268292683 3 1 - time.dt of scene tc5_mountain_marker scaled to ne=12 np=4
+tc5_mountain_marker/float32_auto_ne6 error [tracers] with stepper rk4: its float32 tendency is not written for them; tracers run with the explicit Runge-Kutta steppers
+tc5_mountain_marker/restart_auto_ne5 1234.2857142857142 1234.2857142857142 1 1 - time.dt of scene tc5_mountain_marker scaled to ne=5 np=4
+tc5_mountain_marker/stream_auto_ne9 696.7741935483871 696.7741935483871 2 1 - time.dt of scene tc5_mountain_marker scaled to ne=9 np=4
+tc5_mountain_marker/filter_auto_ne8 785.4545454545455 785.4545454545455 2 1 0.1960207496686738 time.dt of scene tc5_mountain_marker scaled to ne=8 np=4
+tc5_mountain_marker/short_auto_ne3 1296.0 1296.0 1 1 - time.dt of scene tc5_mountain_marker scaled to ne=3 np=4
+tc5_mountain_marker/error_auto_ne8 error [tracers] with stepper bs32: its step control weighs u, v and h alone; tracers run with the explicit Runge-Kutta steppers
 tc6_rossby_haurwitz/as_is 300.0 300.0 12 1 - time.dt of scene tc6_rossby_haurwitz
 tc6_rossby_haurwitz/ne4 1800.0 1800.0 2 1 - time.dt of scene tc6_rossby_haurwitz scaled to ne=4 np=4
 tc6_rossby_haurwitz/ne6_np6 635.2941176470588 635.2941176470588 4 1 - time.dt of scene tc6_rossby_haurwitz scaled to ne=6 np=6
@@ -443,9 +476,10 @@ def test_every_scene_resolves_the_pinned_dt_and_hyperviscosity_schedule():
     got = resolved_pins()
     lines = [as_line(key, value) for key, value in got.items()]
     want = PINS.strip().splitlines()
-    assert len(lines) == len(want) == 22 * len(VARIANTS)
+    assert len(lines) == len(want) == 24 * len(VARIANTS)
     differ = [(a, b) for a, b in zip(lines, want) if a != b]
     assert not differ, f"{len(differ)} differ, first: {differ[0][0]!r} != {differ[0][1]!r}"
     notes = json.loads(NOTES.read_text())
     assert {key: list(v[6]) for key, v in got.items() if v[0] != "error" and v[6]} == notes
-    assert sum(v[0] == "error" for v in got.values()) == 3  # leapfrog_trapezoidal's every = 3
+    # leapfrog_trapezoidal's every = 3; the marker scenes' float32 and step control (tracers refused)
+    assert sum(v[0] == "error" for v in got.values()) == 3 + 4

@@ -26,9 +26,8 @@ GALLERY = HERE.parent / "docs" / "examples"  # the application scripts' place no
 ROOMS = {
     "peers": "Peers: the same cases in other models (Dinosaur, HOMME, HOMME on RRM meshes, pySEs)",
     "studies": "Studies: long steps, implicit cost, the Helmholtz preconditioners, float32's accuracy, "
-    "the face map, MPI scaling, and the package's own study commands",
+    "the face map, MPI scaling, local time stepping, and the package's own study commands",
     "studies/control": "Studies: step control (error and CFL control, its cost)",
-    "studies/lts": "Studies: local time stepping",
     "studies/transport": "Studies: the tracers' transport tests (Lauritzen et al. 2012) beside HOMME's figures",
     "gpu": "GPU: the card script, its payload and the performance models ([GPU.md](gpu/GPU.md))",
     "micro": "Micro: memory, ensembles, gradients, meshes, precision, a run's cost outside its steps",

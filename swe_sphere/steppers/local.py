@@ -56,7 +56,7 @@ MRAB3 = "mrab3"  # multirate Adams–Bashforth 3 (``multirate_ab``), beside the 
 LTS_METHODS = (*MULTIRATE, MRAB3)
 # elements of another level a level's kernels compute (and its DSS leaves out) rather than
 # split a launch: a launch's fixed cost is that of about 30 elements' tendency at np 4 on one
-# CPU thread (benchmarks/studies/lts/lts_level_cost.py), so at most this many between two of its ranges
+# CPU thread (benchmarks/studies/lts.py level_cost), so at most this many between two of its ranges
 LAUNCH_GAP = 16
 
 

@@ -7,7 +7,7 @@ from DRAM) measured in the same run; TC5 and Galewsky terms at each ``--ne``/``-
 The model's own recorded launches are timed (``model.rhs(x, F)``'s, as ``launches.recorded``
 keeps them, and ``model.hv.build(y, coef)``'s, coef = −Δt/n of the scene's step), each
 ``--inner`` times a round, every launch of every grid in turn, ``--rounds`` rounds (load changes
-hit them alike); the medians of ``time.process_time`` a call (``lts_step_cost.timed``). Short
+hit them alike); the medians of ``time.process_time`` a call (``results.timed``). Short
 samples and many rounds: on a shared machine a sample in which the process was preempted comes
 back with its caches cold, and the median leaves it out (10 calls a sample, 15 rounds: the same
 launch of the two scenes differed by up to 60 %; 2 calls, 41 rounds: by 4–16 %). Beside

@@ -22,6 +22,7 @@ import io
 import json
 import os
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -135,6 +136,34 @@ def commit() -> dict:
     return {"commit": git("rev-parse", "HEAD"), "dirty": None if status is None else bool(status)}
 
 
+# an absolute path in a line of text: a slash that starts a word, then at least one folder, up to a
+# blank, a quote, a colon, a comma or a bracket (a tree's label "TREE: 2.1 s", a profile's "x.py:12(f)")
+_ABSOLUTE = re.compile(r"""(?<![\w.~/$-])/[\w.~+-]+/[\w.~+/-]*""")
+_SYSTEM = ("usr", "bin", "lib", "proc", "etc", "dev", "sys")  # the same on every machine: kept
+
+
+def portable(text: str, roots: tuple[str, ...] = (str(HERE.parent),)) -> str:
+    """``text`` without the folders of the machine that ran it: a path into the repository (one of
+    ``roots``: this checkout's) relative to its root, a package's file from its package on
+    (``.../site-packages/numpy/x.py``: ``numpy/x.py``), the system's own folders (/usr, /proc, ...)
+    as they are, and any other path ``DIR/<its last part>`` (a peer's build, a tree compared)."""
+
+    def short(match: re.Match) -> str:
+        path = match.group(0)
+        for root in roots:
+            if path == root or path.startswith(root + "/"):
+                return path[len(root) + 1 :] or "."
+        parts = path.strip("/").split("/")
+        if parts[0] in _SYSTEM:
+            return path
+        for site in ("site-packages", "site"):
+            if site in parts[:-1]:
+                return "/".join(parts[parts.index(site) + 1 :])
+        return f"DIR/{parts[-1] or parts[-2]}"
+
+    return _ABSOLUTE.sub(short, text)
+
+
 class _Tee(io.TextIOBase):
     """Writes to the terminal and keeps a copy, so that a script prints as it did."""
 
@@ -175,7 +204,8 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
     }
     path = RESULTS / Path(script).stem / f"{stem or Path(script).stem}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
-    # a stem given as a path (``--results /tmp/x``) is written there: said as it was written, not refused after the run
+    # the file names no folder of this machine (the repository's own paths relative to it)
+    path.write_text(portable(json.dumps(record, indent=1, ensure_ascii=False)) + "\n")
+    # a stem given as a path (``--results`` an absolute path) is written there: said as it was written, not refused after the run
     shown = path.relative_to(HERE.parent) if path.is_relative_to(HERE.parent) else path
     print(f"figures written to {shown}", file=sys.stderr)

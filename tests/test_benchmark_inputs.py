@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -203,3 +204,44 @@ def test_fewer_than_25_scripts_import_below_the_public_api():
     below = {str(p.relative_to(BENCHMARKS)): sorted(n) for p in scripts if (n := below_the_public_api(p))}
     assert len(below) <= 27, below  # the target: < 25
     assert below_the_public_api(BENCHMARKS / "regressions" / "whole_run.py") == set()  # the CLI's entry is public
+
+
+# a folder of the machine that measured: its scratch, its home, its checkouts and virtual environments
+# (the system's own, /usr/bin/mpirun or /proc/cpuinfo, are every machine's and stay)
+MACHINE = re.compile(r"(?<![\w.~$/-])/(?:work|tmp|home|root|opt|mnt|scratch|Users)/[\w.~+/-]*")
+
+
+def test_no_benchmark_file_names_a_folder_of_the_machine_that_ran_it():
+    """Issue 127's noticed item: scripts, their notes and their results name the repository's paths
+    relative to it and a peer's build or a tree compared as DIR/<its last part> (``results.portable``,
+    applied to every record as it is written), never /work/..., /tmp/... or a home folder."""
+    assert MACHINE.findall("--source /tmp/base-s: x; /work/main/swe_sphere/a.py:3; /usr/bin/mpirun; h / g; ~/site") == [
+        "/tmp/base-s",
+        "/work/main/swe_sphere/a.py",
+    ]
+    texts = [
+        p for p in BENCHMARKS.rglob("*") if p.is_file() and p.suffix in (".py", ".sh", ".md", ".json", ".csv", ".txt")
+    ]
+    found = {str(p.relative_to(BENCHMARKS)): hits for p in texts if (hits := MACHINE.findall(p.read_text()))}
+    assert found == {}
+
+
+def cited_results() -> dict:
+    """Every benchmarks/results path (a file or a glob) the documentation and the README cite, with
+    the first file citing it (a script's docstring names where it writes, not a figure)."""
+    root = BENCHMARKS.parent
+    sources = [*root.glob("docs/**/*.md"), *root.glob("docs/examples/**/*.py"), root / "README.md"]
+    cited = {}
+    for source in sources:
+        for path in re.findall(r"results/([\w.-]+/[\w.*\[\]-]+\.(?:json|csv|txt|npz|nc))", source.read_text()):
+            cited.setdefault(path, str(source.relative_to(root)))
+    return cited
+
+
+def test_every_cited_results_file_exists():
+    """The documentation quotes a figure with its results file: each cited path (or glob) names at
+    least one file under benchmarks/results (a pruned run is cited as ``git show COMMIT:PATH``)."""
+    cited = cited_results()
+    assert "adaptive_proportionality/adaptive_proportionality.json" in cited  # docs/explanation cites it
+    missing = {path: source for path, source in cited.items() if not list((BENCHMARKS / "results").glob(path))}
+    assert missing == {}

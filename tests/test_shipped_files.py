@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from importlib import resources
+from pathlib import Path
 
 import netCDF4
 import pytest
@@ -31,8 +32,8 @@ def test_the_absolute_path_pattern_finds_paths_and_not_units():
     assert found == ["/tmp/specref/swsolver.py", "/home/x/a.nc"]
 
 
-@pytest.mark.parametrize("path", shipped((".nc",)), ids=lambda p: p.name)
-def test_no_shipped_netcdf_file_names_a_folder(path):
+def folders_named(path) -> dict:
+    """The absolute paths each text attribute (global or a variable's) of the netCDF file ``path`` names."""
     with netCDF4.Dataset(str(path)) as nc:
         owners = [("global", nc), *nc.variables.items()]
         texts = {
@@ -41,7 +42,18 @@ def test_no_shipped_netcdf_file_names_a_folder(path):
             for name in obj.ncattrs()
             if isinstance(value := obj.getncattr(name), str)
         }
-    assert {k: ABSOLUTE.findall(v) for k, v in texts.items() if ABSOLUTE.findall(v)} == {}
+    return {k: ABSOLUTE.findall(v) for k, v in texts.items() if ABSOLUTE.findall(v)}
+
+
+@pytest.mark.parametrize("path", shipped((".nc",)), ids=lambda p: p.name)
+def test_no_shipped_netcdf_file_names_a_folder(path):
+    assert folders_named(path) == {}
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).parent / "data" / "meshes").glob("*.g")), ids=lambda p: p.name)
+def test_no_test_mesh_names_a_folder(path):
+    """The repository's Exodus meshes too (mountain_10_x2.g's title named its maker's /Users/... folder)."""
+    assert folders_named(path) == {}
 
 
 @pytest.mark.parametrize("path", shipped((".md", ".toml", ".py")), ids=lambda p: p.name)

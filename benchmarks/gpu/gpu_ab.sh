@@ -5,7 +5,7 @@
 #
 #   bash benchmarks/gpu/gpu_ab.sh pack BASE [HEAD]     # here: .ab/base and .ab/head (default HEAD), git-ignored
 #   bash benchmarks/gpu/gpu_ab.sh run ROUNDS SCRIPT [ARGS...]   # there, after the payload's third call has
-#                                                  # unpacked /tmp/site; carry [".gpu3", ".ab"]
+#                                                  # unpacked ~/site; carry [".gpu3", ".ab"]
 #
 # `run` times benchmarks/SCRIPT (with its room: studies/control/control_overhead.py) of each tree ROUNDS times, base then head, each with
 # `--results ab_<tree>_r<round>` appended; each run's output in <tree>_r<round>.txt, all of
@@ -36,12 +36,12 @@ run)
     export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 PYTHONUNBUFFERED=1
     cat .ab/trees.txt; uptime
     for tree in base head; do  # -P: what a script imports (-c alone would put the checkout first)
-        PYTHONPATH=$PWD/.ab/$tree:/tmp/site python3 -P -c "import swe_sphere; print('$tree imports', swe_sphere.__file__)"
+        PYTHONPATH=$PWD/.ab/$tree:$HOME/site python3 -P -c "import swe_sphere; print('$tree imports', swe_sphere.__file__)"
     done
     for r in $(seq 1 "$rounds"); do
         for tree in base head; do
             log=$work/${tree}_r$r.txt
-            PYTHONPATH=$PWD/.ab/$tree:/tmp/site timeout "${AB_LIMIT:-120}" \
+            PYTHONPATH=$PWD/.ab/$tree:$HOME/site timeout "${AB_LIMIT:-120}" \
                 python3 ".ab/$tree/benchmarks/$script" "$@" --results "ab_${tree}_r$r" >"$log" 2>&1
             echo "$tree r$r (exit $?): $(grep -E "${AB_GREP:-.}" "$log" | tail -n 8 | tr -s ' ' | tr '\n' '|')"
         done

@@ -7,12 +7,12 @@
 #
 #   bash benchmarks/gpu/gpu_payload.sh            # writes .gpu1/ .gpu2/ .gpu3/ (git-ignored through .git/info/exclude)
 #
-# then, on a warm machine, one call a piece, the first two copying theirs to /tmp/stage
-# (`run` with carry [".gpu1"]: `mkdir -p /tmp/stage && cp .gpu1/* /tmp/stage/`), the third
+# then, on a warm machine, one call a piece, the first two copying theirs to ~/stage
+# (`run` with carry [".gpu1"]: `mkdir -p ~/stage && cp .gpu1/* ~/stage/`), the third
 # unpacking them and going on in the same call:
 #
-#   cp .gpu3/* /tmp/stage/ && cat /tmp/stage/p.* | xz -dc | tar -C /tmp -xf - &&
-#   export PYTHONPATH=/tmp/site PYTHON=python3 && bash benchmarks/gpu/gpu_session.sh setup tests_gpu bits …
+#   cp .gpu3/* ~/stage/ && cat ~/stage/p.* | xz -dc | tar -C ~ -xf - &&
+#   export PYTHONPATH=~/site PYTHON=python3 && bash benchmarks/gpu/gpu_session.sh setup tests_gpu bits …
 #
 # The machine is given back 30 s after a call: make the three calls back to back.
 set -eu
@@ -20,7 +20,7 @@ cd "$(dirname "$0")/../.."
 PYV=${PYV:-3.12}  # the GPU machine's Python (its image, 2026-11)
 # the peer Dinosaur (benchmarks/peers/peer_dinosaur.py --device cuda) and what it imports that the image
 # lacks (it has JAX 0.11 with its CUDA plugin, xarray, pandas, scipy, toolz, fsspec, cloudpickle):
-# pure Python, 3 MB; the versions measured on the CPU (/work/venvs/dinosaur)
+# pure Python, 3 MB; the versions measured on the CPU (peer_dinosaur.py's venv)
 PEER="dinosaur==1.5.1 pint==0.25.3 flexcache==0.3 flexparser==0.4 platformdirs==4.14.8 tree-math==0.2.1
       dask==2026.8.0 partd==1.4.2 locket==1.0.0"
 work=$(mktemp -d)

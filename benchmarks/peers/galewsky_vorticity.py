@@ -14,8 +14,8 @@ Printed, side by side for each cube (``[grid] cube``) at ``--ne`` (default 16), 
   (``ref_l2_vorticity``: the model's vorticity of v − v_ref, normalized by the reference's
   velocity-gradient scale) at pySEs's settings of issue 63 (kgu35, Δt 150 s, ν = 1.76e15 m⁴/s,
   the 3 h e-folding rule at ne16), and the CPU seconds of each run (``time.process_time``);
-- where pySEs is installed (``--pyses``, default /work/venvs/pyses/bin/python; install line
-  ``python -m venv /work/venvs/pyses && /work/venvs/pyses/bin/pip install pyses jax``), in a
+- where pySEs is installed (``--pyses``, default ~/.venvs/pyses/bin/python; install line
+  ``python -m venv ~/.venvs/pyses && ~/.venvs/pyses/bin/pip install pyses jax``), in a
   subprocess: pySEs's own t = 0 errors (its grid, ``horizontal_vorticity``, its projection), the
   range of its node longitudes and the mean depth of its own Galewsky h — the two ways its
   set-up is another case (the bump's western half lost to longitudes in [0, 2π); h(−π/2) =
@@ -137,7 +137,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ne", type=int, default=16)
     parser.add_argument("--no-runs", action="store_true", help="only the t = 0 errors")
-    parser.add_argument("--pyses", type=Path, default=Path("/work/venvs/pyses/bin/python"))
+    parser.add_argument("--pyses", type=Path, default=Path.home() / ".venvs" / "pyses" / "bin" / "python")
     args = parser.parse_args()
     print(f"ne{args.ne} np4; t = 0: model vorticity + DSS of the exact wind vs analytic (normalized l2)")
     print(f"{'':28s}{'jet t=0':>12s}{'TC2 t=0':>12s}{'day-6 vs T341':>15s}{'CPU s':>8s}")

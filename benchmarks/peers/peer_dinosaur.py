@@ -7,7 +7,7 @@ state at the peer's nodes).
 Dinosaur (Google's JAX spectral core, PyPI ``dinosaur`` 1.5) is a peer, not a dependency: it runs
 in a virtual environment of its own, made once with::
 
-    python -m venv /work/venvs/dinosaur && /work/venvs/dinosaur/bin/pip install dinosaur jax
+    python -m venv ~/.venvs/dinosaur && ~/.venvs/dinosaur/bin/pip install dinosaur jax
 
 (``--python`` names that environment's interpreter; where it cannot import dinosaur the script
 prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
@@ -110,7 +110,7 @@ image travel as wheels (``benchmarks/gpu/gpu_session.sh`` part ``dinosaur``; ``-
     python benchmarks/peers/peer_dinosaur.py [--case galewsky|tc5|tc6] [--truncations T42 T85 T170]
         [--swe ne16/np4/fbrk32,86400/214 ne16/np4/kgu35,400 ne12/np8/imex,480,imex.scheme=ars232 ...]
         [--peer-dt DT ... | --best-step [--reference-dt DT ...] [--peer-steps DT ...] [--tolerance 0.01]]
-        [--rounds 1] [--python /work/venvs/dinosaur/bin/python] [--device cpu|cuda]
+        [--rounds 1] [--python ~/.venvs/dinosaur/bin/python] [--device cpu|cuda]
 """
 
 from __future__ import annotations
@@ -137,7 +137,7 @@ ONE_THREAD = {
     "MKL_NUM_THREADS": "1",
 }
 CHILD = Path(__file__).with_name("dinosaur_child.py")  # a run of either model, in a process of its own
-DEFAULT_PYTHON = Path("/work/venvs/dinosaur/bin/python")
+DEFAULT_PYTHON = Path.home() / ".venvs" / "dinosaur" / "bin" / "python"
 # ``--best-step``'s candidate steps of the peer, s: steps that divide a day (86400 / N)
 DAY_STEPS = (300.0, 450.0, 600.0, 720.0, 900.0, 1200.0, 1440.0, 1800.0, 2400.0, 2880.0, 3600.0, 4320.0, 5400.0, 7200.0)
 

@@ -12,7 +12,7 @@ the same: a scene file per grid and np (``homme_scene``), e.g. on ``mountain_10_
     name = "tc2_steady"
     [grid]
     ne = 0
-    mesh_file = "/abs/path/mountain_10_x2.g"
+    mesh_file = "PATH/mountain_10_x2.g"
     np = 4
     [planet]
     radius = 6376000.0

@@ -21,8 +21,8 @@ before it (Chebyshev, low-order-refined and AMG preconditioners, the weak Laplac
 spectra) is in git history (``git log -- benchmarks/studies/helmholtz_preconditioners.py``).
 CPU clock (``time.process_time``); run with one thread:
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --record /tmp/solves.npz
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --solves /tmp/solves.npz
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --record solves.npz
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/studies/helmholtz_preconditioners.py --solves solves.npz
 """
 
 from __future__ import annotations

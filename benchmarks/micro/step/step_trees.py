@@ -11,7 +11,7 @@ trees in turn, so that a change of load hits them alike. Medians, ms a step, and
 ratio to the first. Between processes a step's time moves by up to ±25 % on a shared VM: quote
 the medians of several rounds. Figures to ``benchmarks/results/step_trees/step_trees[_STEM].json``::
 
-    python benchmarks/micro/step/step_trees.py --scene galewsky tc5_mountain --source /tmp/old /tmp/new --rounds 5
+    python benchmarks/micro/step/step_trees.py --scene galewsky tc5_mountain --source OLD NEW --rounds 5
 """
 
 from __future__ import annotations

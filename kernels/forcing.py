@@ -1,4 +1,5 @@
-"""Analytic forcing: Williamson et al. (1992) case 4, the forced translating low.
+"""Analytic forcing: Williamson et al. (1992) case 4, the forced translating low; the transport
+tests' prescribed winds (Nair & Lauritzen 2010's deformational flows) as ∂v/∂t.
 
 The case's exact solution (their §3.4, eqs. 106–129, and parameters; NCAR
 STSWM's ``FORCE``/``BUBFNC`` for the same case) is a nondivergent flow v = k×∇Ψ with
@@ -111,8 +112,9 @@ for _t in (f64, wp.float32):  # the tendency's float types
     wp.overload(translating_low, {"tend": wp.array2d(dtype=_t)})
 
 
-# k0 = κ a / T (m s⁻¹), 2π / T and π / T (s⁻¹): the deformational flow's (``deformational_flow``)
-DeformationalParams = wp.types.vector(length=3, dtype=f64)
+# k0 = κ a / T (m s⁻¹), 2π / T and π / T (s⁻¹), and 0 or 1: the nondivergent or the divergent
+# deformational flow (``deformational_flow``)
+DeformationalParams = wp.types.vector(length=4, dtype=f64)
 
 
 @wp.kernel
@@ -127,9 +129,11 @@ def deformational_flow(
     offset: int,
 ):
     """tend[0:2, p] += ∂u/∂t, ∂v/∂t (m s⁻²) at time t (s) of Nair & Lauritzen (2010)'s
-    nondivergent deformational flow (their case 4; Lauritzen et al. 2012 §2.1; HOMME's
-    ``get_nondiv2d_uv``): with λ' = λ − 2πt/T,
-    u = k0 sin²λ' sin 2θ cos(πt/T) + u0 cos θ,  v = k0 sin 2λ' cos θ cos(πt/T),
+    deformational flows (Lauritzen et al. 2012 §2.1), with λ' = λ − 2πt/T: c[3] = 0 the
+    nondivergent one (their case 4; HOMME's ``get_nondiv2d_uv``),
+    u = k0 sin²λ' sin 2θ cos(πt/T) + u0 cos θ,  v = k0 sin 2λ' cos θ cos(πt/T);
+    c[3] = 1 the divergent one (their case 3 with the background rotation),
+    u = −k0 sin²(λ'/2) sin 2θ cos²θ cos(πt/T) + u0 cos θ,  v = (k0/2) sin λ' cos³θ cos(πt/T);
     so that a stepper's stages carry the prescribed wind in time (the case's continuity alone
     moves h and the tracers); k0 = 0: solid-body rotation, whose wind does not change. Rows 2..
     (h, the tracers) get nothing. ``block`` nodes a thread as ``translating_low``. Dim N/block."""
@@ -144,11 +148,18 @@ def deformational_flow(
         cos_lat = wp.sqrt(x * x + y * y)
         lam = wp.atan2(y, x) - omega * t
         s1 = wp.sin(lam)
-        s2 = wp.sin(f64(2.0) * lam)
-        c2 = wp.cos(f64(2.0) * lam)
         sin_2lat = f64(2.0) * z * cos_lat
-        du = -k0 * sin_2lat * (omega * s2 * ct + rate * s1 * s1 * st)
-        dv = -k0 * cos_lat * (f64(2.0) * omega * c2 * ct + rate * s2 * st)
+        du = f64(0.0)
+        dv = f64(0.0)
+        if c[3] == f64(0.0):
+            s2 = wp.sin(f64(2.0) * lam)
+            du = -k0 * sin_2lat * (omega * s2 * ct + rate * s1 * s1 * st)
+            dv = -k0 * cos_lat * (f64(2.0) * omega * wp.cos(f64(2.0) * lam) * ct + rate * s2 * st)
+        else:  # d/dt sin²(λ'/2) = −(ω/2) sin λ', d/dt sin λ' = −ω cos λ'
+            cos2 = cos_lat * cos_lat
+            half = wp.sin(f64(0.5) * lam)
+            du = k0 * sin_2lat * cos2 * (f64(0.5) * omega * s1 * ct + rate * half * half * st)
+            dv = -f64(0.5) * k0 * cos2 * cos_lat * (omega * wp.cos(lam) * ct + rate * s1 * st)
         tend[0, p] = tend[0, p] + type(tend[0, p])(du)
         tend[1, p] = tend[1, p] + type(tend[1, p])(dv)
 

@@ -443,6 +443,7 @@ class DeformationalFlow(Case):
 
     required_terms = frozenset({"continuity", "forcing"})
     exact_solution = True
+    divergent = 0.0  # the forcing kernel's choice of flow (1: ``DivergentFlow``)
     kappa: float = 10.0
     period_days: float = 12.0
     h0: float = 1000.0
@@ -455,7 +456,7 @@ class DeformationalFlow(Case):
         from ..kernels import forcing as forcing_kernels  # as ForcedLow's: Warp's import is a run's
 
         a, T = self.planet.a, self.period
-        params = forcing_kernels.DeformationalParams(self.kappa * a / T, 2 * math.pi / T, math.pi / T)
+        params = forcing_kernels.DeformationalParams(self.kappa * a / T, 2 * math.pi / T, math.pi / T, self.divergent)
         return forcing_kernels.deformational_flow, params
 
     def fcor(self, lat, lon):
@@ -473,6 +474,42 @@ class DeformationalFlow(Case):
         return u, v, np.full(np.shape(lat), self.h0)
 
 
+@dataclass(frozen=True)
+class DivergentFlow(DeformationalFlow):
+    """The transport tests' divergent prescribed wind (Lauritzen et al. 2012, Geosci. Model Dev.
+    5, 887, §2.1: Nair & Lauritzen (2010)'s case 3 with the background rotation), with
+    λ' = λ − 2πt/T,
+
+        u = −k0 sin²(λ'/2) sin 2θ cos²θ cos(πt/T) + (2πa/T) cos θ,
+        v = (k0/2) sin λ' cos³θ cos(πt/T),
+
+    k0 = κ a / T, κ = ``kappa`` (5: their k = 1 at T = 5 on the unit sphere). The divergence
+    moves the depth h, which the continuity carries as a density (the tracers' mixing ratios
+    q = hq / h are advected); at t = T the flow has undone itself and h, q are back where they
+    started: that is the only time the solution is known, so the case has no exact solution to
+    score its outputs against (``wind`` gives the prescribed wind at any t). The wind changes in
+    time by the "forcing" term (``kernels.forcing.deformational_flow``)."""
+
+    exact_solution = False
+    divergent = 1.0
+    kappa: float = 5.0
+
+    def initial(self, lat, lon):
+        u, v = self.wind(lat, lon, 0.0)
+        return u, v, np.full(np.shape(lat), self.h0)
+
+    def wind(self, lat, lon, t):
+        """(u, v) (m s⁻¹) of the prescribed wind at time t (s)."""
+        a, T = self.planet.a, self.period
+        k0, shifted, ct = self.kappa * a / T, lon - 2 * math.pi * t / T, math.cos(math.pi * t / T)
+        cos_lat = np.cos(lat)
+        u = -k0 * np.sin(shifted / 2) ** 2 * np.sin(2 * lat) * cos_lat**2 * ct + 2 * math.pi * a / T * cos_lat
+        v = 0.5 * k0 * np.sin(shifted) * cos_lat**3 * ct
+        return u, v
+
+    exact = Case.exact  # h is known at t = 0 and T only
+
+
 # name → (class, allowed parameters with their types)
 CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "tc1_cosine_bell": (CosineBell, {"alpha": float}),
@@ -486,6 +523,8 @@ CASES: dict[str, tuple[type[Case], dict[str, type]]] = {
     "galewsky": (Galewsky, {"perturbed": bool, "umax": float, "hhat": float, "lat2": float, "lon2": float}),
     # κ of k0 = κ a / T (0: solid-body rotation), T (days), the constant depth (m)
     "deformational_flow": (DeformationalFlow, {"kappa": float, "period_days": float, "h0": float}),
+    # the same with the divergent wind (κ 5 by default)
+    "divergent_flow": (DivergentFlow, {"kappa": float, "period_days": float, "h0": float}),
 }
 
 

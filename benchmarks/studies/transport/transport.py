@@ -2,9 +2,10 @@
 
 Nair & Lauritzen (2010)'s nondivergent deformational flow (T = 12 days) carrying cosine
 bells, Gaussian hills, slotted cylinders, the correlated pair and q = 1
-(``deformational_flow.toml`` beside this script), at each ``--ne`` (np 4, Δt and ν scaled by the
-scene's rule from ne10's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), scored at t = T against
-the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
+(``deformational_flow.toml`` beside this script), at each ``--ne`` and ``--np`` (4: HOMME's; Δt and
+ν scaled by the scene's rule from ne10 np4's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), or
+``--flow divergent`` (their case 3, ``divergent_flow``: h moves too, and its l2 at T is scored),
+scored at t = T against the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
 undershoots φmax, φmin, each mass's relative change, and the l2 rates between grids; ``--limiter``
 the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8); the bells' filament
 diagnostic l_f(τ) and the correlated pair's mixing diagnostics l_r, l_u, l_o at T/2 (``filaments``,
@@ -31,6 +32,7 @@ from results import positive, quiet_warp, recorded
 from swe_sphere import Simulation, load_scene
 
 SCENE = Path(__file__).with_name("deformational_flow.toml")
+FLOWS = {"nondivergent": "deformational_flow", "divergent": "divergent_flow"}  # --flow: its case
 # HOMME's own figures, its swirl test's recorded l2 with its limiter 8 (../shared/transport-tests.md)
 HOMME_L2 = {
     10: {"bells": 0.347, "hills": 0.182, "cylinders": 0.437},
@@ -58,6 +60,16 @@ def scores(path: Path, names) -> dict:
                 "mass_change": float(ds[f"{name}_mass_change"][-1]),
             }
         return out
+
+
+def depth_l2(path: Path) -> float:
+    """h's normalised l2 at run file ``path``'s last time against its first: the divergent flow
+    moves h and brings it back at t = T."""
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        w, h0, h = ds.area.values, ds.h.isel(time=0).values, ds.h.isel(time=-1).values
+    return float(math.sqrt((w * (h - h0) ** 2).sum() / (w * h0 * h0).sum()))
 
 
 # the filament diagnostic's thresholds τ (Lauritzen et al. 2012 §3.3: 0.10, 0.15, ..., 1.0)
@@ -139,6 +151,8 @@ def maps(path: Path, png: Path, name: str = "bells") -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ne", type=positive(int), nargs="+", default=[10])
+    parser.add_argument("--np", type=positive(int), default=4, help="GLL points per element direction")
+    parser.add_argument("--flow", choices=tuple(FLOWS), default="nondivergent", help="the prescribed wind")
     parser.add_argument("--days", type=positive(float), default=12.0, help="the run (T = 12: the whole test)")
     parser.add_argument("--maps", type=Path, default=None, help="a PNG of the bells at 0, T/2, T (the finest grid)")
     parser.add_argument("--keep", type=Path, default=None, help="a folder to keep the run files in")
@@ -147,15 +161,21 @@ def main() -> None:
     )
     args = parser.parse_args()
     quiet_warp()
-    stem = None if args.limiter == "none" else f"transport_{args.limiter}"
+    # the default's file transport.json; a variant's names what differs (transport_optimization_np8)
+    variant = [
+        v
+        for v, default in ((args.limiter, "none"), (args.flow, "nondivergent"), (f"np{args.np}", "np4"))
+        if v != default
+    ]
+    stem = "_".join(["transport", *variant]) if variant else None
     with recorded(__file__, stem) as figures, tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         l2 = {}
         for ne in args.ne:
-            over = {"output.every_days": args.days / 2, "tracers.limiter": args.limiter}
-            scene = load_scene(SCENE, ne=ne, days=args.days, overrides=over)
-            path = folder / f"deformational_flow_ne{ne}.nc"
+            over = {"output.every_days": args.days / 2, "tracers.limiter": args.limiter, "case.name": FLOWS[args.flow]}
+            scene = load_scene(SCENE, ne=ne, np_=args.np, days=args.days, overrides=over)
+            path = folder / f"{FLOWS[args.flow]}_ne{ne}_np{args.np}.nc"
             Simulation(scene, "cpu", progress=False).run(path, overwrite=True)
             names = [name for name, _ in scene.tracers]
             got = scores(path, names)
@@ -164,11 +184,16 @@ def main() -> None:
             figures[f"mixing_ne{ne}"] = mx = mixing(path)
             l2[ne] = {n: got[n]["l2"] for n in names}
             print(
-                f"ne{ne} np4 dt {scene.dt:g} s nu_s {scene.nu_s:.3g} m4/s, limiter {args.limiter}, day {args.days:g}:"
+                f"ne{ne} np{args.np} {args.flow} dt {scene.dt:g} s nu_s {scene.nu_s:.3g} m4/s, limiter {args.limiter}, "
+                f"day {args.days:g}:"
             )
+            if args.flow == "divergent":
+                figures[f"h_l2_ne{ne}"] = l2[ne]["h"] = depth_l2(path)
+                print(f"  h           l2 {l2[ne]['h']:.4g}")
+            compared = HOMME_L2 if (args.flow, args.np) == ("nondivergent", 4) else {}
             for n in names:
                 g = got[n]
-                homme = HOMME_L2.get(ne, {}).get(n)
+                homme = compared.get(ne, {}).get(n)
                 beside = "" if homme is None else f"  (HOMME {homme})"
                 print(
                     f"  {n:11s} l1 {g['l1']:.4f} l2 {g['l2']:.4f} linf {g['linf']:.4f} "
@@ -179,11 +204,14 @@ def main() -> None:
             print("  mixing at T/2: " + ", ".join(f"{k} {v:.2e}" for k, v in mx.items()))
         grids = sorted(l2)
         for a, b in zip(grids, grids[1:], strict=False):
-            rates = {n: math.log(l2[a][n] / l2[b][n]) / math.log(b / a) for n in l2[a] if l2[b][n] > 0}
+            # q = 1's l2 is round-off (or 0): no rate
+            rates = {
+                n: math.log(l2[a][n] / l2[b][n]) / math.log(b / a) for n in l2[a] if min(l2[a][n], l2[b][n]) > 1e-12
+            }
             figures[f"rate_ne{a}_ne{b}"] = rates
             print(f"l2 rate ne{a} -> ne{b}: " + ", ".join(f"{n} {r:.2f}" for n, r in rates.items()))
         if args.maps is not None:
-            maps(folder / f"deformational_flow_ne{grids[-1]}.nc", args.maps)
+            maps(folder / f"{FLOWS[args.flow]}_ne{grids[-1]}_np{args.np}.nc", args.maps)
             print(f"maps: {args.maps}", file=sys.stderr)  # a file written, not a figure
 
 

@@ -208,6 +208,22 @@ def assert_continued(folder: Path, args: list[str], days: float) -> None:
 
 
 LEAPFROG = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"]  # continued
+ERA = HERE.parent / "testcases" / "data" / "eraint_july_500hPa.nc"  # a reanalysis file, copied and then deleted
+# on every rank once all have ended the run (rank 0 still reads the file after the loop: its summary's case)
+GONE = "import pathlib, sys\nfrom mpi4py import MPI\nMPI.COMM_WORLD.Barrier()\npathlib.Path(sys.argv[1]).unlink(missing_ok=True)\n"
+
+
+def reanalysis_commands(folder: Path) -> dict[int, list[list[str]]]:
+    """A run from a copy of ERA-Interim's July file stopped at day 0.25 on 2 ranks, the copy deleted,
+    and its restart file continued on 3 (``continue_on_three``)."""
+    shutil.copy(ERA, folder / "july.nc")
+    (folder / "gone.py").write_text(GONE)
+    commands = continue_on_three(folder, [str(folder / "july.nc"), *REANALYSIS], 0.5)
+    commands[2].append([str(folder / "gone.py"), str(folder / "july.nc")])
+    return commands
+
+
+REANALYSIS = ["--ne", "2", "--dt", "1800", "--no-progress"]
 BRANCH = ["--stepper", "rk4", "--days", "0.5", "--ne", "2", "--no-progress"]  # from the spin's restart file
 ENSEMBLE = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
 ENSEMBLE += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25"]
@@ -250,6 +266,7 @@ OVER_RANKS = {
     },
     "test_run_on_two_ranks_continues_on_three": lambda d: continue_on_three(d, LEAPFROG, 0.5),
     "test_a_branch_on_two_ranks_has_the_bits_of_one": branch_commands,
+    "test_a_reanalysis_run_continues_on_three_without_its_file": reanalysis_commands,
     **{
         f"test_an_ensemble_s_members_over_ranks_keep_their_bits[{layout}]": functools.partial(
             ensemble_commands, layout=layout
@@ -355,6 +372,15 @@ def test_run_on_two_ranks_continues_on_three(over_ranks):
     continued on 3 ends with the bits of an uninterrupted 1-rank run."""
     folder, _ = over_ranks
     assert_continued(folder, LEAPFROG, 0.5)
+
+
+def test_a_reanalysis_run_continues_on_three_without_its_file(over_ranks):
+    """Issue 127, item 13: a run from a reanalysis file stopped on 2 ranks continues on 3 with the file
+    deleted (the restart file keeps its analysed state), ending with the bits of an uninterrupted
+    1-rank run from the bundled file it was copied from."""
+    folder, _ = over_ranks
+    assert not (folder / "july.nc").exists()
+    assert_continued(folder, [str(ERA), *REANALYSIS], 0.5)
 
 
 @pytest.mark.usefixtures("needs_mpi")

@@ -95,7 +95,10 @@ def resolve_planet(table: dict | None) -> Planet:
 ANGLES = {"alpha": (2 * math.pi, "2π"), "lat2": (math.pi / 2, "π/2"), "lon2": (2 * math.pi, "2π")}
 
 
-FILE_KEYS = {"file": ("path",), "reanalysis": ("initial_file", "surface_file")}  # a case's keys naming files
+FILE_KEYS = {
+    "file": ("path",),
+    "reanalysis": ("initial_file", "surface_file", "analysed_file"),
+}  # a case's keys naming files
 
 
 def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:

@@ -42,6 +42,7 @@ from ..cases.library import Case
 from ..cases.reference import SpectralReference, reference_path, spectral_fields, synthesis
 from ..core.constants import EARTH
 from ..core.errors import SceneError
+from . import restart_file
 from .reanalysis_file import RINGS, open_source, read_field
 
 
@@ -152,12 +153,21 @@ def _stamp(path):
         return None
 
 
+@functools.lru_cache(maxsize=4)
+def _kept(path, stamp) -> Analysed:
+    return Analysed(**restart_file.read_analysed(path))
+
+
 @dataclass(frozen=True)
 class Reanalysis(Case):
     """A state of one's own from a reanalysis file (module docstring): ``initial_file`` at
     ``level`` (hPa) and ``time``, truncated at ``truncation`` (default: tapered at what the
     data and ``grid_degree``, the model grid's Nyquist degree that ``Scene.make_case`` gives,
-    resolve), over the surface of ``surface_file`` (else hs = 0). Unforced, scored against nothing."""
+    resolve), over the surface of ``surface_file`` (else hs = 0). Unforced, scored against nothing.
+
+    ``analysed_file``: a restart file keeping that state (``restart_file.ANALYSED``), read instead of
+    ``initial_file`` and ``surface_file`` (which then only record what was read), so a continuation
+    (``checkpoint.read`` sets it) needs neither; ``CheckpointError`` where it cannot be read."""
 
     initial_file: str | None = None
     level: float | None = None
@@ -165,13 +175,22 @@ class Reanalysis(Case):
     truncation: float | None = None
     surface_file: str | None = None
     grid_degree: float | None = None
+    analysed_file: str | None = None
 
     def __post_init__(self):  # read and checked once (``SceneError``), when the scene is loaded
         if self.initial_file is None:
             raise SceneError("case.initial_file is missing: the reanalysis file (netCDF) of the initial state")
-        key = (self.level, self.time, self.truncation, self.grid_degree, self.surface_file, self.planet)
-        state = _cached(self.initial_file, _stamp(self.initial_file), *key)
+        if self.analysed_file is not None:
+            state = _kept(self.analysed_file, _stamp(self.analysed_file))
+        else:
+            key = (self.level, self.time, self.truncation, self.grid_degree, self.surface_file, self.planet)
+            state = _cached(self.initial_file, _stamp(self.initial_file), *key)
         object.__setattr__(self, "_state", state)
+
+    @property
+    def analysed(self) -> Analysed:
+        """The analysed state the case synthesises at the nodes (a restart file keeps it)."""
+        return self._state
 
     @property
     def required_terms(self):
@@ -228,6 +247,13 @@ REANALYSIS_CASES = {
     "tc7_era_january": (EraJanuary, {}),
     "reanalysis": (
         Reanalysis,
-        {"initial_file": str, "level": float, "time": str, "truncation": float, "surface_file": str},
+        {
+            "initial_file": str,
+            "level": float,
+            "time": str,
+            "truncation": float,
+            "surface_file": str,
+            "analysed_file": str,
+        },
     ),
 }

@@ -12,7 +12,9 @@ attributes ``stepper_<key>``), the run's counters
 attribute ``precision``, "float64" or "float32": the tendency's, which a continuation keeps), under step control
 the control's state (``StepControl.state()``: the next Δt, the controller's history, the
 counts and the time reached; JSON, attribute ``step_control``), an ensemble's member count
-(attribute ``ensemble_members``: its state is every member's, side by side) and the package version.
+(attribute ``ensemble_members``: its state is every member's, side by side), the package version
+and, for a start from a reanalysis file, its analysed state (``ANALYSED``: what a continuation
+rebuilds the case from, so the restart file stands alone when the input file is moved or gone).
 
 Every variable is written with netCDF's per-variable Fletcher-32 checksum, and
 the attribute ``content_sha256`` holds a SHA-256 of the state, the stepper's
@@ -51,6 +53,14 @@ def mass_names(scene: dict) -> list[str]:
     of the stored scene's (``Scene.as_dict``) [tracers], in order."""
     return [f"{name}_mass" for name, _ in scene.get("tracers", ())]
 
+
+ANALYSED = ("h_surface", "vorticity", "divergence", "hs")  # ``reanalysis.Analysed``'s coefficients
+"""A reanalysis start's state: the complex coefficients (nalm,) of ``reanalysis.Analysed`` (h + hs,
+vorticity, divergence and hs; m, s⁻¹, s⁻¹, m; ducc0's order) as variables ``analysed_<name>`` on
+(``part``: real, imaginary; ``alm``), hs absent when the start has none; its ``lmax``, sphere radius
+``a`` (m) and words of what was read as the attributes ``analysed_lmax``, ``analysed_a``, ``analysed_read``.
+A file without them (a case that reads no file, or one written before they were kept) continues
+from its scene's case as it always did: the format is 3 either way."""
 
 MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
 
@@ -108,6 +118,7 @@ def write(
     restart_every: float | None = None,
     control: dict | None = None,
     members: int | None = None,
+    analysed=None,
 ) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
@@ -120,7 +131,8 @@ def write(
     and cell measure (for tools; ``read`` does not need them); ``restart_every``: the
     run's restart interval (days; None: none), which a continuation keeps; ``control``: under
     step control ``StepControl.state()`` (its ``day`` the time written); ``members``: an
-    ensemble's (``swe_sphere.ensemble``; x and ``grid`` its members' copies side by side). Raises
+    ensemble's (``swe_sphere.ensemble``; x and ``grid`` its members' copies side by side); ``analysed``:
+    a reanalysis start's ``reanalysis.Analysed`` (``ANALYSED``; None: the case reads no file). Raises
     ``output.OutputError`` when ``path`` exists and not ``overwrite`` (or is a link /
     being written)."""
     path = Path(path)
@@ -171,6 +183,8 @@ def write(
                 var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
                 var.setncatts(dict(units="m", long_name=f"{name[:-5]} tracer's mass hq at each element's GLL nodes"))
                 var[:] = row
+            if analysed is not None:
+                _write_analysed(ds, analysed)
             for key, value in stepper_state.items():
                 if isinstance(value, np.ndarray):
                     var = ds.createVariable(f"stepper_{key}", "f8", ("row", "node"), fletcher32=True)
@@ -182,6 +196,41 @@ def write(
                         np.int32(value) if isinstance(value, int) and not isinstance(value, bool) else value,
                     )
     return path
+
+
+def _write_analysed(ds, analysed) -> None:
+    """``analysed``'s coefficients and attributes into the open restart file ``ds`` (``ANALYSED``)."""
+    ds.createDimension("part", 2)
+    ds.createDimension("alm", analysed.h_surface.size)
+    for name in ANALYSED:
+        value = getattr(analysed, name)
+        if value is not None:
+            var = ds.createVariable(f"analysed_{name}", "f8", ("part", "alm"), fletcher32=True)
+            var.long_name = f"the reanalysis start's {name} as spherical-harmonic coefficients (real, imaginary)"
+            var[:] = np.stack([value.real, value.imag])
+    ds.analysed_lmax = np.int32(analysed.lmax)
+    ds.analysed_a = float(analysed.a)
+    ds.analysed_read = analysed.read
+
+
+def read_analysed(path) -> dict:
+    """The reanalysis start's state kept in the restart file ``path`` (``ANALYSED``), as
+    ``reanalysis.Analysed`` takes it: {"h_surface", "vorticity", "divergence", "hs" (complex (nalm,)
+    arrays; hs None when not kept), "lmax", "a", "read"}. Raises ``CheckpointError`` (one line) for a
+    file gone, without that state, or failing a checksum."""
+    try:
+        with netCDF4.Dataset(path, "r") as ds:
+            if "analysed_h_surface" not in ds.variables:
+                raise CheckpointError(f"{path}: holds no analysed reanalysis state (variables analysed_*)")
+            parts = {
+                name: np.asarray(ds[f"analysed_{name}"][:], np.float64)
+                for name in ANALYSED
+                if f"analysed_{name}" in ds.variables
+            }
+            out = {name: None for name in ANALYSED} | {k: v[0] + 1j * v[1] for k, v in parts.items()}
+            return out | {"lmax": int(ds.analysed_lmax), "a": float(ds.analysed_a), "read": str(ds.analysed_read)}
+    except (OSError, RuntimeError, AttributeError) as err:  # gone, not netCDF, a failed Fletcher-32 checksum
+        raise CheckpointError(f"{path}: its analysed reanalysis state cannot be read ({err})") from None
 
 
 def ensemble_members(path) -> int | None:
@@ -198,8 +247,8 @@ def read(path) -> dict:
     """Read and check a restart file: {"scene": the scene as stored (``Scene.as_dict()``),
     "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
     (absolute), "sha256" (of the file's bytes), "restart_every", "control" (None without
-    step control), "members" (an ensemble's; None for a single run)}. Raises ``CheckpointError``
-    (one line)."""
+    step control), "members" (an ensemble's; None for a single run), "analysed" (whether it holds a
+    reanalysis start's state, ``ANALYSED``)}. Raises ``CheckpointError`` (one line)."""
     path = Path(path)
     if path.is_dir():
         raise CheckpointError(f"checkpoint {path} is a directory, not a restart file")
@@ -257,6 +306,7 @@ def read(path) -> dict:
                 restart_every=float(attrs["restart_every_days"]) if "restart_every_days" in attrs else None,
                 control=json.loads(attrs["step_control"]) if "step_control" in attrs else None,
                 members=int(attrs["ensemble_members"]) if "ensemble_members" in attrs else None,
+                analysed="analysed_h_surface" in arrays,
             )
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")

@@ -109,12 +109,16 @@ def read_on_root(path, comm) -> Checkpoint:
 
 
 def read(path) -> Checkpoint:
-    """Read a checkpoint (``restart_file.read``) and its scene. Raises ``CheckpointError`` (one line)."""
+    """Read a checkpoint (``restart_file.read``) and its scene (a reanalysis start's case reading its
+    analysed state from the file itself, ``case.analysed_file``). Raises ``CheckpointError`` (one line)."""
     stored = restart_file.read(path)
+    analysed = stored.pop("analysed")
     try:
         scene = scene_from_dict(stored.pop("scene"))
     except (KeyError, ValueError, TypeError) as err:
         raise CheckpointError(f"{Path(path)}: damaged checkpoint ({type(err).__name__}: {err})") from None
+    if analysed:  # a reanalysis start: its case from the state the file keeps, the input file not needed
+        scene = replace(scene, case_params=scene.case_params | {"analysed_file": str(stored["path"])})
     return Checkpoint(scene, **stored)
 
 

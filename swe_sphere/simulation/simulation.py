@@ -689,6 +689,7 @@ class Simulation:
         writer of the package does."""
         d = self.members  # (x, stepper states, initial, grid) on rank 0, else None; an ensemble's member count
         parts, kept = d.restart_parts(), {"overwrite": overwrite, "restart_every": restart_every, "members": d.members}
+        kept["analysed"] = getattr(self.case, "analysed", None)  # a reanalysis start's: its continuation's case
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
 
     # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities

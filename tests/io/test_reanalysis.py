@@ -17,6 +17,7 @@ from swe_sphere.core.constants import EARTH
 from swe_sphere.core.errors import SceneError
 from swe_sphere.io.reanalysis import analyse, taper
 from swe_sphere.io.reanalysis_file import G0
+from swe_sphere.io.restart_file import ANALYSED, read_analysed
 
 from helpers import TINY, cli_main, one_line
 
@@ -124,15 +125,20 @@ def test_the_default_truncation_is_what_data_and_grid_resolve_tapered():
     assert state.h_surface[0] == pytest.approx(5500.0 * math.sqrt(4 * math.pi), rel=1e-12)
 
 
-def test_a_surface_file_gives_hs_and_the_depth_over_it(tmp_path):
-    """hs from a surface-geopotential file (m² s⁻², over g) at the state's truncation; h = (h + hs) − hs."""
+def _orography(path) -> None:
+    """A surface-geopotential file (m² s⁻²) of 1000 m cos²(lat) on the synthetic state's Gaussian grid."""
     lat = _grid("gaussian", 24)
     la = np.radians(lat)[:, None] * np.ones(48)
     surface = xr.Dataset(
         {"orog": (("lat", "lon"), 1000.0 * np.cos(la) ** 2 * EARTH.g, {"units": "m2 s-2"})},
         coords={"lat": ("lat", lat, {"units": "degrees_north"}), "lon": ("lon", 7.5 * np.arange(48))},
     )
-    surface.to_netcdf(tmp_path / "orog.nc")
+    surface.to_netcdf(path)
+
+
+def test_a_surface_file_gives_hs_and_the_depth_over_it(tmp_path):
+    """hs from a surface-geopotential file (m² s⁻², over g) at the state's truncation; h = (h + hs) − hs."""
+    _orography(tmp_path / "orog.nc")
     got = analyse(_dataset(), truncation=L, surface=tmp_path / "orog.nc").at(*POINTS)
     assert np.max(np.abs(got["hs"] - 1000.0 * np.cos(POINTS[0]) ** 2)) < 1e-8
     assert np.array_equal(got["h"], got["h_surface"] - got["hs"])
@@ -388,6 +394,41 @@ def test_a_run_says_and_records_what_it_read(capsys, tmp_path, monkeypatch):
         ncep.read.startswith("Z3 as a geopotential height")
         and "a Gaussian grid of 64 x 128, analysed to T63" in ncep.read
     )
+
+
+def test_a_continuation_needs_no_input_file(capsys, tmp_path, monkeypatch):
+    """Issue 127, item 13: a run from a reanalysis file over a surface file stopped at half a day
+    continues to day 1 with both files gone (its restart file keeps the analysed state), to the bit
+    of the uninterrupted run, and says and records what was read as that run does."""
+    monkeypatch.chdir(tmp_path)
+    _dataset().to_netcdf("state.nc")
+    _orography("orog.nc")
+    terms = '["continuity", "momentum_advection", "coriolis", "pressure_gradient", "topography", "hyperviscosity"]'
+    args = ("run", "state.nc", "--ne", "2", "--np", "3", "--no-progress", "-s", "case.surface_file=orog.nc")
+    args += ("-s", f"terms={terms}", "--restart-every", "0.5")  # both runs' dt cut to divide it
+    code, whole_out, err = cli_main(capsys, *args, "--days", "1", "--output", "whole.nc")
+    assert code == 0, err
+    code, _, err = cli_main(capsys, *args, "--days", "0.5", "--output", "half.nc")
+    assert code == 0, err
+    Path("state.nc").unlink()
+    Path("orog.nc").unlink()
+    code, _, err = cli_main(capsys, "run", "--continue", "half.restart.nc", "--days", "1", "--output", "rest.nc")
+    assert code == 0, err
+    with (
+        xr.open_dataset("whole.nc", decode_times=False) as whole,
+        xr.open_dataset("rest.nc", decode_times=False) as rest,
+    ):
+        assert np.any(whole.hs.values > 100.0)  # the surface is in the run
+        assert np.array_equal(whole.hs.values, rest.hs.values)
+        for name in ("u", "v", "h"):
+            assert np.array_equal(whole[name].sel(time=1).values, rest[name].sel(time=1).values), name
+        read = json.loads(whole.attrs["scene"])["notes"][0]
+        assert read.startswith("read from state.nc: z as a geopotential") and read.endswith(
+            "over the surface of orog.nc"
+        )
+        assert json.loads(rest.attrs["scene"])["notes"][0] == read and f"note        {read}\n" in whole_out
+    kept, again = read_analysed("half.restart.nc"), read_analysed("rest.restart.nc")  # the next continuation's
+    assert kept["read"] == again["read"] and all(np.array_equal(kept[k], again[k]) for k in ANALYSED)
 
 
 def test_case_7_starts_from_its_reference_and_is_scored_against_it(capsys, tmp_path, monkeypatch):

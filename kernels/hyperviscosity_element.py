@@ -39,7 +39,7 @@ class _ElementParts(NamedTuple):
 
 
 @functools.cache
-def _weak_laplacian_rows(np_: int, dtype=f64):
+def weak_laplacian_rows(np_: int, dtype=f64):
     """One field's weak Laplacian on an element's rows (F, G11, G12, G22, dvv, dvvT, lo) → mat, in ``dtype``."""
     NP = int(np_)
     vec, mat, along, across = row_derivatives(NP, dtype)
@@ -111,7 +111,7 @@ def _row_laplacians(second: bool, np_: int, dtype=f64):
     NP, S = int(np_), bool(second)
     vec, mat = row_derivatives(NP, dtype)[:2]
     RowFrame = frame_type(vec)
-    field, lap = _row_field(S, NP, dtype), _weak_laplacian_rows(NP, dtype)
+    field, lap = _row_field(S, NP, dtype), weak_laplacian_rows(NP, dtype)
 
     def laplacians(
         src: wp.array2d(dtype=_source(S, NP, dtype)),

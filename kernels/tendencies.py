@@ -295,6 +295,8 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
         E = mat()  # the Bernoulli function
         v1 = mat()  # covariant wind (vorticity)
         v2 = mat()
+        U1 = mat()  # the contravariant wind, kept for the tracers' fluxes
+        U2 = mat()
         for j in range(NP):
             q = base + j
             u = vec(x[0, q])  # the state's rows in the tendency's type
@@ -302,8 +304,13 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
             h = vec(x[2, q])
             if wp.static(CONT):
                 Jh = times(metdet[q], h)
-                f1[j] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
-                f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+                c1 = times(Dinv[0, q], u) + times(Dinv[1, q], v)
+                c2 = times(Dinv[2, q], u) + times(Dinv[3, q], v)
+                f1[j] = times(Jh, c1)
+                f2[j] = times(Jh, c2)
+                if wp.static(K > 0):
+                    U1[j] = c1
+                    U2[j] = c2
             if wp.static(ADV):
                 E[j] = dtype(0.5) * (times(u, u) + times(v, v))
                 c1, c2 = covariant(D, x, q)
@@ -342,14 +349,12 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
                 else:
                     cy = across(v1, j, dvv)
             wp.static(finish(terms, weighted))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
-        for k in range(wp.static(K)):  # each tracer's mass flux, then its divergence, as h's
+        for k in range(wp.static(K)):  # each tracer's mass flux on h's contravariant wind, then its divergence, as h's
             for j in range(NP):
                 q = base + j
-                u = vec(x[0, q])
-                v = vec(x[1, q])
                 Jh = times(metdet[q], vec(x[3 + k, q]))
-                f1[j] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
-                f2[j] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+                f1[j] = times(Jh, U1[j])
+                f2[j] = times(Jh, U2[j])
             for q in range(base, base + NP):
                 j = q - base
                 div = vec()

@@ -1,13 +1,25 @@
-"""Pointwise kernels of the passive tracers' ∇⁴ (``model.hyperviscosity.Hyperviscosity.apply_tracers``).
+"""The passive tracers' ∇⁴ (``model.hyperviscosity.Hyperviscosity.apply_tracers``): a scalar
+∇⁴ of each tracer alone, without the wind's three Cartesian fields (HOMME applies its tracers'
+biharmonic to the tracer mass alone: ``biharmonic_wk_scalar`` in ``advance_hypervis_scalar``).
 
 A tracer's mass hq takes the ∇⁴ the depth takes, acting on q(h + hs) = hq + q·hs where the
 depth's acts on h + hs: the weak ∇⁴ of any field sums to zero over the sphere, so the tracer's
-mass is conserved, and where q = 1 (hq = h to the bit) it is h's ∇⁴ to the bit, so q = 1
-stays 1 (HOMME keeps that consistency by a tracer flux of the depth's dissipation,
+mass is conserved, and where q = 1 (hq = h to the bit) the field is h + hs to the bit, its weak
+Laplacians the depth's own arithmetic (``hyperviscosity_element.weak_laplacian_rows``), so q = 1
+stays 1 to round-off (HOMME keeps that consistency by a tracer flux of the depth's dissipation,
 ``prim_advection_mod``'s dpdiss; here the field the ∇⁴ acts on carries it).
+
+``tracer_laplacian`` is one weak Laplacian of every tracer of an element, a thread an element on
+its GLL rows (the CPU's SIMD rows; on CUDA the same kernel, a thread an element): the DSSs
+between and after are the topology's (``grid.topology.Topology.dss``, ``dss_update``).
 """
 
+import functools
+
 import warp as wp
+
+from .hyperviscosity_element import weak_laplacian_rows
+from .operators import CPU_FAST, row_derivatives
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -15,19 +27,64 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.kernel
 def tracer_surface(
-    x: wp.array2d(dtype=f64),
-    row: int,
-    hs: wp.array(dtype=f64),
-    w: wp.array2d(dtype=f64),
-    hs_q: wp.array(dtype=f64),
-    block: int,
-    offset: int,
+    x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), qhs: wp.array2d(dtype=f64), block: int, offset: int
 ):
-    """w[2] = x[row] (a tracer's mass hq, m) and hs_q = (hq / h)·hs (m), the surface term the
-    ∇⁴ adds to w[2] (q·hs: hs itself, to the bit, where hq = h). Dim N/block."""
-    k = wp.tid()
-    start = (k + offset) * block
+    """qhs[k] = (hq / h)·hs (m) of each tracer k (hq = x[3 + k], h = x[2]): q·hs, the surface term
+    its ∇⁴ adds to hq (hs itself, to the bit, where hq = h), fixed over an ∇⁴ application as the
+    depth's hs is. Dim N/block."""
+    start = (wp.tid() + offset) * block
     for p in range(start, start + block):
-        hq = x[row, p]
-        w[2, p] = hq
-        hs_q[p] = hq / x[2, p] * hs[p]
+        for k in range(qhs.shape[0]):
+            qhs[k, p] = x[3 + k, p] / x[2, p] * hs[p]
+
+
+@functools.cache
+def tracer_laplacian(first: bool, np_: int):
+    """c · the weak Laplacian −Σ ∂ᵀ(G ∇_ref f) of each tracer's field f into L (K, ·), HOMME's
+    ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric G, as
+    ``hyperviscosity.laplacian_metric``: rows 0..2 of ``metric``). ``first``: f = q(h + hs) =
+    hq + q·hs of tracer k, hq row 3 + k of the state ``src`` (3 + K, ·) and q·hs row k of ``qhs``
+    (``tracer_surface``): the first Laplacian, ``c`` = ν_s; else f = row k of ``src`` (K, ·), the
+    DSS'd first Laplacian Y₁: the second, ``c`` unread, ``metric`` the tensor ∇⁴'s where it has
+    one. Arguments on GLL rows (``operators.row_vectors``): src, qhs (K, ·; read by the first
+    alone), metric (4, ·), dvv (``operators.dvv_matrix``), c, L (K, ·) output, offset (in
+    elements). Dim nelem. float64."""
+    NP, FIRST = int(np_), bool(first)
+    vec, mat = row_derivatives(NP)[:2]
+    lap = weak_laplacian_rows(NP)
+
+    def kernel(
+        src: wp.array2d(dtype=vec),
+        qhs: wp.array2d(dtype=vec),
+        metric: wp.array2d(dtype=vec),
+        dvv: mat,
+        c: f64,
+        L: wp.array2d(dtype=vec),
+        offset: int,
+    ):
+        base = (wp.tid() + offset) * NP
+        dvvT = wp.transpose(dvv)
+        G11 = mat()
+        G12 = mat()
+        G22 = mat()
+        for j in range(NP):
+            G11[j] = metric[0, base + j]
+            G12[j] = metric[1, base + j]
+            G22[j] = metric[2, base + j]
+        for k in range(L.shape[0]):  # a tracer at a time, in a loop clang does not unroll
+            F = mat()
+            for j in range(NP):
+                q = base + j
+                if wp.static(FIRST):  # hq + q·hs: h + hs itself where hq = h
+                    F[j] = src[3 + k, q] + qhs[k, q]
+                else:
+                    F[j] = src[k, q]
+            Lk = lap(F, G11, G12, G22, dvv, dvvT, base)
+            for j in range(NP):
+                if wp.static(FIRST):
+                    L[k, base + j] = c * Lk[j]
+                else:
+                    L[k, base + j] = Lk[j]
+
+    kernel.__qualname__ = kernel.__name__ = f"tracer_laplacian__{'first' if FIRST else 'second'}"
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -81,11 +81,13 @@ class Hyperviscosity:
         self.hv_Y = wp.zeros((4, N), dtype=dtype if ops.per_element else f64, device=device)
         # the weak form of Y₁ (and Y₂'s on the per-node layout)
         self.hv_L = wp.zeros((4, N), dtype=dtype, device=device)
-        if ops.per_element:  # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+        # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
+        if ops.per_element or m.tracers:
             metric = wp.zeros((4, N), dtype=f64, device=device)
-            self.hv_L2 = wp.zeros((4, N), dtype=dtype, device=device)  # the weak form of Y₂ (L holds Y₁'s)
             m.launches.nodes(hyperviscosity.laplacian_metric, N, [ops.Dinv, m.spheremp, metric]).launch()
-            self.hv_metric = rounded(metric, dtype)
+            self.hv_metric = rounded(metric, dtype)  # read by the tracers' ∇⁴ on either layout
+        if ops.per_element:
+            self.hv_L2 = wp.zeros((4, N), dtype=dtype, device=device)  # the weak form of Y₂ (L holds Y₁'s)
         else:  # the Cartesian state and the weak Laplacian's flux of the per-node kernels
             self.hv_X = wp.zeros((4, N), dtype=dtype, device=device)
             self.hv_flux = wp.zeros((8, N), dtype=dtype, device=device)
@@ -101,7 +103,9 @@ class Hyperviscosity:
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
         self._rkl_buffers: dict = {}  # RKL1's Y_{j−1} or Y_{j−2} beside x, by x's shape (``rkl1``)
-        self._tracer_work = None  # (W (3, N), q·hs (N,)): a tracer's ∇⁴ state (``apply_tracers``)
+        # the tracers' ∇⁴ work arrays (``build_tracers``): q·hs, the first weak Laplacian, its DSS Y₁, the second
+        K = m.tracers
+        self._tracer_work = tuple(wp.zeros((K, N), dtype=f64, device=device) for _ in range(4)) if K else None
 
     def build(
         self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0), depth=None
@@ -439,31 +443,52 @@ class Hyperviscosity:
 
     def apply_tracers(self, x: wp.array2d, dt: float) -> None:
         """The tracers' ∇⁴ over dt (s) in place on their masses hq (rows 3.. of x, the model's
-        ``tracers``), each by ``apply`` with ν = ν_div = 0 on a state W whose row 2 is hq and
-        whose surface height is q·hs (``kernels.tracers``: ν_s ∇⁴ of q(h + hs), conserving ∫hq,
-        h's own steps to the bit where hq = h); the same plan of substeps or RKL1 stages as the
-        dynamics' (ν_max's). Call it before ``apply`` (q is read from x's h). Nothing with ν_s = 0
-        or without tracers. W's wind rows stay zero (ν = 0 leaves them so)."""
+        ``tracers``): ν_s ∇⁴ of q(h + hs), each tracer a scalar field alone (``build_tracers``:
+        ∫hq conserved, h's own arithmetic where hq = h), by the same plan of substeps or RKL1
+        stages as the dynamics' (ν_max's; ``apply`` with ``tracers``). Call it before ``apply``
+        (q is read from x's h, once: q·hs stays fixed over the application, ``kernels.tracers``'
+        ``tracer_surface``). Nothing with ν_s = 0 or without tracers."""
         m = self.model
-        if not m.tracers or m.nu_s == 0.0 or self.nu_max == 0.0:
-            return
-        if self._tracer_work is None:
-            self._tracer_work = (
-                wp.zeros((3, m.N), dtype=f64, device=m.device),
-                wp.zeros(m.N, dtype=f64, device=m.device),
-            )
-        W, hs_q = self._tracer_work
-        for k in range(3, m.rows):
-            surface = [x, k, m.operators.hs, W, hs_q]
+        if m.tracers and m.nu_s != 0.0:
+            surface = [x, m.operators.hs, self._tracer_work[0]]
             m.launches.replay(
-                ("hv_tracer", x.ptr, k), (x,), lambda: [m.launches.pointwise(tracers.tracer_surface, None, surface)]
+                ("hv_tracer_surface", x.ptr),
+                (x,),
+                lambda: [m.launches.pointwise(tracers.tracer_surface, None, surface)],
             )
-            with m.operators.hs_as(hs_q):  # the launches of W's ∇⁴ are recorded with q·hs as hs
-                self.apply(W, dt, (0.0, 0.0, m.nu_s))
-            back = x[k : k + 1]
-            m.launches.replay(("hv_tracer_back", x.ptr, k), (x,), lambda: [m.lincomb(back, ((1.0, W[2:3]),))])
+            self.apply(x, dt, tracers=True)
 
-    def apply(self, x: wp.array2d, dt: float, nus=None) -> None:
+    def build_tracers(self, src, out, prev, mode: str, c: tuple) -> list:
+        """Launches of one ∇⁴ evaluation of the tracers (rows 3.. of the states): Y₂ = M⁻¹DSS(L₂),
+        L₂ the weak Laplacian (the tensor's where the ∇⁴ has one) of Y₁ = M⁻¹DSS(L₁), L₁ = ν_s·the
+        weak Laplacian of hq + q·hs from ``src`` and the q·hs ``apply_tracers`` took
+        (``kernels.tracers.tracer_laplacian``; HOMME
+        ``biharmonic_wk_scalar``), then by ``mode`` with the coefficients ``c``: "add", out +=
+        c₀·Y₂ (out = src); "euler", out = src + c₀·Y₂; "rkl", out = c₀·src + c₁·prev + c₂·Y₂ (an
+        RKL1 stage, c = (μ, ν, μ·coef)), as the second DSS sums (``Topology.dss_update``). out may
+        alias src and prev. The 4 launches (and the DSSs' exchanges) serve every tracer at once."""
+        m = self.model
+        ops, (qhs, L1, Y1, L2) = m.operators, self._tracer_work
+        second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
+        dvv, rows = m.tendency_arrays.dvv_rows, ops.as_rows
+        s, o, p = src[3:], out[3:], prev[3:]
+        terms = (
+            ((c[0], s), (c[1], p), (c[2], None)) if mode == "rkl" else ((1.0, o if mode == "add" else s), (c[0], None))
+        )
+        np_ = m.grid.np
+        return [
+            m.launches.elements(
+                tracers.tracer_laplacian(True, np_),
+                [rows(src), rows(qhs), rows(self.hv_metric), dvv, m.nu_s, rows(L1)],
+            ),
+            *m.topology.dss(L1, False, Y1),
+            m.launches.elements(
+                tracers.tracer_laplacian(False, np_), [rows(Y1), rows(qhs), rows(second), dvv, 1.0, rows(L2)]
+            ),
+            *m.topology.dss_update(L2, [(o, terms)], weighted=False),
+        ]
+
+    def apply(self, x: wp.array2d, dt: float, tracers: bool = False) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
         (B: ``operator``, ν ∇⁴ with ν, ν_div, ν_s)
@@ -479,20 +504,21 @@ class Hyperviscosity:
         exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
         up on day 4, as with forward Euler it does not. RKL1's P_s damps the
         interior of its interval to ≲ 0.3; the split is first order anyway.
-        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. ``nus``: (ν, ν_div, ν_s) in
-        place of the model's (None), the plan still the model's (``apply_tracers``')."""
+        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. ``tracers``: the tracers' ∇⁴
+        (``build_tracers``) by the same plan, in place of the dynamics' (``apply_tracers``)."""
         m = self.model
         if self.nu_max == 0.0:
             return
         n, rkl = self.plan(dt)
         if rkl:
-            self.rkl1(x, dt, n, nus)
+            self.rkl1(x, dt, n, tracers)
             return
         coef = -dt / n
+        build = (lambda c: self.build_tracers(x, x, x, "add", c)) if tracers else (lambda c: self.build(x, c[0]))
         for _ in range(n):
-            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0], nus=nus), (coef,))
+            m.launches.replay(("hv", tracers, x.ptr), (x,), build, (coef,))
 
-    def rkl1(self, x: wp.array2d, dt: float, s: int, nus=None) -> None:
+    def rkl1(self, x: wp.array2d, dt: float, s: int, tracers: bool = False) -> None:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
         dx/dt = M(x) = −B x over dt (s), in place on the state x (3, N): Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
@@ -500,16 +526,20 @@ class Hyperviscosity:
         ν dt λ ≤ s² + s. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
         convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
         (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
-        or x at the last stage (each read at its own node only). ``nus`` as ``apply``'s."""
+        or x at the last stage (each read at its own node only). ``tracers`` as ``apply``'s."""
         m = self.model
         if x.shape not in self._rkl_buffers:
             self._rkl_buffers[x.shape] = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
         def stage(src, out, prev, mode, mu=1.0, nu=0.0):
-            key = ("hv", mode, src.ptr, out.ptr, prev.ptr)
-            build = lambda c: self.build(src, c[0], out, nus=nus, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
-            m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
+            key = ("hv", tracers, mode, src.ptr, out.ptr, prev.ptr)
+            if tracers:  # the stage's coefficients as the tracers' update takes them (``build_tracers``)
+                build = lambda c: self.build_tracers(src, out, prev, mode, c)  # noqa: E731
+                m.launches.replay(key, (src, out, prev), build, (coef,) if mode == "euler" else (mu, nu, mu * coef))
+            else:
+                build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
+                m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
 
         prev, cur = x, self._rkl_buffers[x.shape]
         stage(x, cur, x, "euler")  # Y_1

@@ -81,6 +81,23 @@ def positive(kind, above=0):
     return parse
 
 
+def section(doc: str, study: str) -> str:
+    """The first paragraph of the section headed ````study```` of a script's docstring ``doc``: what
+    that study (a subcommand) measures, its ``--help``."""
+    text = doc.split(f"``{study}``\n")[1]
+    return " ".join(text.split("\n\n")[0].strip("~\n").split())
+
+
+def studies(doc: str, calls: dict) -> None:
+    """A script of several studies: the first argument names one (``calls``: its name to the call
+    taking the rest of the arguments, its own options); argparse's one line and exit 2 for another."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("study", choices=list(calls), help="the study (its options: STUDY --help)")
+    parser.add_argument("options", nargs=argparse.REMAINDER, help="the study's options")
+    args = parser.parse_args()
+    calls[args.study](args.options)
+
+
 def check_sources(parser, sources) -> None:
     """``parser.error`` (one line, exit 2) for a ``--source`` that holds no swe_sphere tree: on
     PYTHONPATH it would be skipped, and the installed tree timed under its name."""

@@ -26,8 +26,8 @@ GALLERY = HERE.parent / "docs" / "examples"  # the application scripts' place no
 ROOMS = {
     "peers": "Peers: the same cases in other models (Dinosaur, HOMME, HOMME on RRM meshes, pySEs)",
     "studies": "Studies: long steps, implicit cost, the Helmholtz preconditioners, float32's accuracy, "
-    "the face map, MPI scaling, local time stepping, and the package's own study commands",
-    "studies/control": "Studies: step control (error and CFL control, its cost)",
+    "the face map, MPI scaling, local time stepping, step control (error and CFL control, its cost), and the "
+    "package's own study commands",
     "studies/transport": "Studies: the tracers' transport tests (Lauritzen et al. 2012) beside HOMME's figures",
     "gpu": "GPU: the card script, its payload and the performance models ([GPU.md](gpu/GPU.md))",
     "micro": "Micro: memory, ensembles, gradients, meshes, precision, a run's cost outside its steps",
@@ -97,11 +97,12 @@ def cell(text: str) -> str:
 
 
 def records(stem: str) -> list[dict]:
-    """The JSON records of script ``stem``, oldest first (by their own UTC date, then name)."""
+    """The JSON records of script ``stem``, oldest first (by their own UTC date, then name); a
+    script of several studies keeps each study's in a folder of its own (``file`` then names it)."""
     out = []
-    for path in sorted((RESULTS / stem).glob("*.json")):
+    for path in sorted((RESULTS / stem).rglob("*.json")):
         record = json.loads(path.read_text())
-        out.append({**record, "file": path.name})
+        out.append({**record, "file": str(path.relative_to(RESULTS / stem))})
     return sorted(out, key=lambda r: (r.get("date", ""), r["file"]))
 
 
@@ -118,6 +119,9 @@ def conditions(record: dict, path: Path) -> str:
     # an absolute path of the measuring machine (a peer's build, a tree compared) as DIR/its last part:
     # a reader's folders differ, and the page names no one's machine
     args = [f"DIR/{Path(a).name}" if a.startswith("/") else a for a in shlex.split(record.get("command", ""))[2:]]
+    study = Path(record["file"]).parent.name if "file" in record else ""
+    if study and record.get("script") != path.name:  # a study's run from before its script held several
+        args = [study, *args]
     command = shlex.join(["python", str(path.relative_to(HERE.parent)), *args])
     if GALLERY in path.parents:  # an example now: its run as recorded, at its commit
         command = record.get("command", "?")
@@ -136,7 +140,7 @@ def row(path: Path) -> str:
     name = f"[`{path.name}`]({Path('..') / path.relative_to(HERE.parent) if GALLERY in path.parents else path.relative_to(HERE)})"
     stem = path.stem.removeprefix("plot_") if GALLERY in path.parents else path.stem
     folder = RESULTS / stem
-    files = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+    files = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()) if folder.is_dir() else []
     recs = records(stem)
     if not files:
         own = "recorded(" in path.read_text() or path.suffix == ".sh"  # else a module the scripts import

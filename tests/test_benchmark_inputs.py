@@ -233,7 +233,7 @@ def cited_results() -> dict:
     sources = [*root.glob("docs/**/*.md"), *root.glob("docs/examples/**/*.py"), root / "README.md"]
     cited = {}
     for source in sources:
-        for path in re.findall(r"results/([\w.-]+/[\w.*\[\]-]+\.(?:json|csv|txt|npz|nc))", source.read_text()):
+        for path in re.findall(r"results/((?:[\w.-]+/)+[\w.*-]+\.(?:json|csv|txt|npz|nc))", source.read_text()):
             cited.setdefault(path, str(source.relative_to(root)))
     return cited
 
@@ -242,6 +242,6 @@ def test_every_cited_results_file_exists():
     """The documentation quotes a figure with its results file: each cited path (or glob) names at
     least one file under benchmarks/results (a pruned run is cited as ``git show COMMIT:PATH``)."""
     cited = cited_results()
-    assert "adaptive_proportionality/adaptive_proportionality.json" in cited  # docs/explanation cites it
+    assert "error_control/adaptive_proportionality/adaptive_proportionality.json" in cited  # docs/explanation cites it
     missing = {path: source for path, source in cited.items() if not list((BENCHMARKS / "results").glob(path))}
     assert missing == {}

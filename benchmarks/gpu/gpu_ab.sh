@@ -7,11 +7,11 @@
 #   bash benchmarks/gpu/gpu_ab.sh run ROUNDS SCRIPT [ARGS...]   # there, after the payload's third call has
 #                                                  # unpacked ~/site; carry [".gpu3", ".ab"]
 #
-# `run` times benchmarks/SCRIPT (with its room: studies/control/control_overhead.py) of each tree ROUNDS times, base then head, each with
+# `run` times benchmarks/SCRIPT (with its room: studies/control_ne30.py control_overhead) of each tree ROUNDS times, base then head, each with
 # `--results ab_<tree>_r<round>` appended; each run's output in <tree>_r<round>.txt, all of
 # them and the results files in $OUT/ab.tgz; AB_GREP (a grep -E pattern) picks the lines printed
 # here, AB_LIMIT (s, default 120) bounds each run. Example (issue 83, 2026-11-27):
-#   bash benchmarks/gpu/gpu_ab.sh run 3 studies/control/control_overhead.py --device cuda --ne 60 --control error --pair rk43 \
+#   bash benchmarks/gpu/gpu_ab.sh run 3 studies/control_ne30.py control_overhead --device cuda --ne 60 --control error --pair rk43 \
 #       --rtol 1e-6 --parts a --days 2
 set -u
 cd "$(dirname "$0")/../.."

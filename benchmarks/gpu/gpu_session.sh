@@ -157,12 +157,12 @@ part_criterion_ne120() {
 part_control() {  # issue 64/67/83: a controlled run's steps as CUDA graphs (one a grid dt, tries launched ahead) against a fixed dt
     for g in ${CONTROL_GRAPHS:-auto off}; do
         for d in ${CONTROL_DAYS:-0.25}; do  # issue 83 measured 0.25 and 2 days, three rounds each
-            run "control_${g}_${d}d" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/studies/control/control_overhead.py --device "$DEVICE" \
+            run "control_${g}_${d}d" 100 env SWE_SPHERE_GRAPHS=$g "$PY" benchmarks/studies/control_ne30.py control_overhead --device "$DEVICE" \
                 --ne "$([ "$small" = 1 ] && echo 4 || echo 60)" --control error --pair rk43 --rtol 1e-6 --days "$d" \
                 --parts a b --repeat 20 --results "gpu_control_overhead_${g}_${d}d"
         done
     done
-    cp benchmarks/results/control_overhead/gpu_control_overhead_*.json "$OUT/" 2>/dev/null
+    cp benchmarks/results/control_ne30/control_overhead/gpu_control_overhead_*.json "$OUT/" 2>/dev/null
 }
 
 part_small() {  # issue 83 item 5: the default scenes' step on the card, where launches bound it (target <= 0.05 ms)

@@ -57,7 +57,7 @@ LANDING_SLACK = 1e-6
 # a Δt among them replays its list as recorded; another sets the least recently used list's
 # coefficient arguments in place (nothing recorded). Before they were arguments, a new Δt
 # recorded the lists again: 1.4–3.1 ms a step at ne8 against a 0.9 ms bs32 step
-# (benchmarks/studies/control/adaptive_proportionality.py (d)); now benchmarks/studies/control/control_overhead.py
+# (benchmarks/studies/error_control.py adaptive_proportionality (d)); now benchmarks/studies/control_ne30.py control_overhead
 DT_GRID = 16
 LAUNCH_VARIANTS = 4
 

@@ -12,7 +12,7 @@ the per-node terms (``kernels.error_norm``) gathered from every rank into the wh
 order of the unique nodes (their global ids) and added there by one ``np.sum``: the same
 terms in the same order on any rank count, so the same bits. (``math.fsum``, the correctly
 rounded sum, gave that too at 5 ms a norm at ne30, 40 % of a bs32 step; the ordered sum
-takes 0.05 ms: benchmarks/studies/control/control_overhead.py.) On one rank the sum is ``np.sum``'s own
+takes 0.05 ms: benchmarks/studies/control_ne30.py control_overhead.) On one rank the sum is ``np.sum``'s own
 pairwise summation taken apart (``PairwiseSum``): its leaves of at most 128 terms added on the
 device, a few thousand leaf sums read and added on the host along numpy's tree, the same bits
 as ``np.sum`` of every term without reading them (1.5 MB a norm at ne60: on an H100 the read

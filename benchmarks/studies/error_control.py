@@ -1,8 +1,16 @@
-"""Error-controlled steps (``[time] control = "error"``) measured: tolerance proportionality,
+"""Error control's accuracy and cost at small grids (``[time] control = "error"`` and ``"balanced"``): tolerance
+proportionality, the cost against the best fixed step, the balanced controller, and starts far above
+the stable step. One subcommand a study, each written to ``results/error_control/<study>/<stem>.json``::
+
+    python benchmarks/studies/error_control.py STUDY [its options]   # STUDY --help: its options
+
+``adaptive_proportionality``
+~~~~~~~~~~~~~~~~~~~~~~~~~~~~
+Error-controlled steps (``[time] control = "error"``) measured: tolerance proportionality,
 the cost against the best fixed step, and a run started far above its stable step.
 
-    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \\
-        python benchmarks/studies/control/adaptive_proportionality.py [--ne 8] [--tc2-days 5] [--tc5-days 5]
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+        python benchmarks/studies/error_control.py adaptive_proportionality [--ne 8] [--tc2-days 5] [--tc5-days 5]
 
 Every run is in this process, one thread, timed with its CPU clock (``time.process_time`` of
 ``Simulation.run``; each stepper warmed once first so that no kernel compiles inside a timing);
@@ -29,6 +37,54 @@ every run's). The parts:
     accepted and rejected steps, CPU s, ratio (issue 64's target ≤ 1.3×).
 (d) **The control's own cost** (TC5): a pair's step at one Δt against a new Δt every step (the
     launch lists keyed by Δt recorded again), and one error norm; CPU ms.
+
+``adaptive_balanced``
+~~~~~~~~~~~~~~~~~~~~~
+The balanced step control (``control = "balanced"``, issue 64's "a run that asks for an
+accuracy") against the efficiency study's verdict: does one run at ``time.balance`` = f keep its
+temporal error at about f of the spatial one, and what does it cost against the sweep's
+cheapest qualifying fixed-Δt run?
+
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+        python benchmarks/studies/error_control.py adaptive_balanced [--ne 16] [--cases tc5 tc6 galewsky] [--balances 0.1]
+
+Every run in this process at ``--ne`` np4 over the sweep's lengths (TC5 15 days, TC6 14,
+Galewsky 6; docs/explanation/efficiency/sweep.md), one thread, its CPU clock
+(``time.process_time`` of ``Simulation.run``, each stepper warmed by a short run first); no run
+file written; the helpers are ``adaptive_proportionality``'s. For each case:
+
+- the **reference**: rk4 at Δt_g/4 (the sweep's; Δt_g the gravity-wave limit of the initial
+  state, cut to divide 3 h); its h + hs l2 (Williamson et al. 1992, eq. 83) against the case's
+  T213 run is the spatial error, and a run's temporal error is its final h + hs against the
+  reference's: it qualifies at ≤ 10 % of the spatial error (the sweep's criterion);
+- the sweep's **cheapest qualifying fixed run** at ne16 on h + hs (``--fixed``: TC5 rk4 @ 0.69,
+  TC6 kgu35 @ 1.6, Galewsky fbrk32 @ 1.3, multiples of Δt_g), rerun here;
+- each pair of ``--pairs`` under ``control = "balanced"`` at each f of ``--balances`` (the
+  default cap): its temporal error, the ratio to the spatial error (the mode's aim: f), the
+  accepted and rejected steps, the smallest, mean and largest Δt, CPU s, and the CPU ratio to
+  the fixed run.
+
+Written to ``results/adaptive_balanced.json`` (``--results``: another name).
+
+``adaptive_hard_start``
+~~~~~~~~~~~~~~~~~~~~~~~
+The stability suite's hard cases started far above their stable step under error control
+(issue 64's target: finish without a blow-up, at ≤ 1.3× the cost of a run started at the right step).
+
+For each case (``--cases``: TC5, TC6, inviscid TC6 and Galewsky, each over its scene's length,
+ne ``--ne`` np 4) and each embedded pair (``--pairs``), three runs under ``time.control =
+"error"`` at rtol ``--rtol``:
+
+- from the pair's largest stable step (its measured Courant limit ``Stepper.courant_limit`` over
+  the initial state's largest signal rate (|v| + sqrt(g h))/Δx, ``sweep.runs.explicit_limits``;
+  an IMEX pair's ``advective_courant_limit`` over the largest |v|/Δx);
+- from 5× that step with the default Courant cap (0.9 × the limit: the first step is cut to it);
+- from 5× that step with the cap off (``time.cfl = false``): the error controller alone.
+
+Printed per run: finished or the blow-up's line, accepted and rejected steps, CPU s (one
+thread, ``time.process_time``), the ratio to the run from the stable step.
+
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/error_control.py adaptive_hard_start [--ne 8] [--rtol 1e-4] [--pairs ...] [--results STEM]
 """
 
 from __future__ import annotations
@@ -42,12 +98,19 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py, the shared module
-from results import quiet_warp, recorded
+from swe_sphere import STEPPERS, BlowUp, Simulation, load_scene
+from swe_sphere.studies.sweep.runs import explicit_limits
 
-from swe_sphere import BlowUp, Simulation, load_scene
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
+from results import DAY, quiet_warp, recorded, section, studies  # noqa: E402
 
-DAY = 86400.0
+STUDIES = (
+    "adaptive_proportionality",
+    "adaptive_balanced",
+    "adaptive_hard_start",
+)  # the subcommands, a section of this docstring each
+
+
 SNAPSHOT = 10800.0  # s: the sweep's 3-hourly snapshots, which its fixed Δt divide
 
 
@@ -305,8 +368,11 @@ def step_cost(args, out: dict) -> None:
     out["step_cost"] = rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def adaptive_proportionality(argv: list[str]) -> None:
+    """``adaptive_proportionality``: its options parsed from ``argv``, its runs, its results file."""
+    parser = argparse.ArgumentParser(
+        prog="error_control.py adaptive_proportionality", description=section(__doc__, "adaptive_proportionality")
+    )
     parser.add_argument("--ne", type=int, default=8)
     parser.add_argument("--tc2-days", type=float, default=5.0)
     parser.add_argument("--tc5-days", type=float, default=5.0)
@@ -338,10 +404,10 @@ def main() -> None:
         "--results",
         help="the results file's stem (default adaptive_proportionality; e.g. adaptive_proportionality_ne16)",
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     args.pair_rtols = {k: [float(r) for r in v.split(",")] for k, v in (a.split("=") for a in args.pair_rtols)}
     quiet_warp()
-    with recorded(__file__, stem=args.results) as figures:
+    with recorded(__file__, f"adaptive_proportionality/{args.results or 'adaptive_proportionality'}") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         warm("tc5_mountain", args.ne, sorted({s.split("@")[0] for s in args.fixed} | set(args.pairs)))
         if "a" in args.parts and "tc2" in args.cases:
@@ -364,5 +430,145 @@ def main() -> None:
         print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
+BALANCED_CASES = {  # label: (scene, days, the sweep's cheapest qualifying fixed run at ne16 on h + hs)
+    "tc5": ("tc5_mountain", 15.0, "rk4@0.69"),
+    "tc6": ("tc6_rossby_haurwitz", 14.0, "kgu35@1.6"),
+    "galewsky": ("galewsky", 6.0, "fbrk32@1.3"),
+}
+
+
+def balanced_runs(args, label: str, out: dict) -> None:
+    scene, days, fixed = BALANCED_CASES[label]
+    over = {"case.reference": "T213"}
+    probe = build(scene, args.ne, days, "rk4", overrides=over)
+    dt_ref, dt_g = fixed_dt(probe, 0.25)
+    ref = run(scene, args.ne, days, "rk4", dt=dt_ref, overrides=over)
+    spatial = ref["diagnostics"]["ref_l2_h_surface"]
+    print(
+        f"\n## {scene} ne{args.ne} np4, {days:g} days (Δt_g {dt_g:.1f} s): reference rk4 at {dt_ref:.1f} s, "
+        f"{ref['accepted']} steps; spatial error (h + hs against T213) {spatial:.3e}, 10 % of it {0.1 * spatial:.3e}",
+        flush=True,
+    )
+    print(f"{'run':22s} {'temporal':>10s} {'/spatial':>8s} ok accepted rejected  dt min/mean/max (s)   CPU s  ratio")
+    stepper, multiple = fixed.split("@")
+    dt, _ = fixed_dt(probe, float(multiple))
+    r = run(scene, args.ne, days, stepper, dt=dt, overrides=over)
+    base = r["cpu"]
+    rows = {fixed: _balanced_line(fixed, r, ref, spatial, base)}
+    for pair in args.pairs:
+        for f in args.balances:
+            control = {"control": "balanced", "balance": f}
+            r = run(scene, args.ne, days, pair, control=control, overrides=over)
+            rows[f"{pair}@balance={f:g}"] = _balanced_line(f"{pair} balance {f:g}", r, ref, spatial, base)
+    out[label] = {"days": days, "spatial": spatial, "reference_dt": dt_ref, "dt_g": dt_g, "runs": rows}
+
+
+def _balanced_line(name, r, ref, spatial, base) -> dict:
+    e = temporal(r, ref)
+    row = {"temporal": e, "ratio": e / spatial, "qualifies": e <= 0.1 * spatial, "accepted": r["accepted"]}
+    row |= {"rejected": r["rejected"], "dt": r["dt"], "cpu": r["cpu"], "cpu_ratio": r["cpu"] / base}
+    dt = "/".join(f"{x:.0f}" for x in r["dt"])
+    ok = "yes" if row["qualifies"] else "no"
+    print(
+        f"{name:22s} {e:10.3e} {e / spatial:8.3f} {ok:>3s} {r['accepted']:8d} {r['rejected']:8d}  {dt:20s} "
+        f"{r['cpu']:7.2f} {r['cpu'] / base:6.2f}",
+        flush=True,
+    )
+    return row
+
+
+def adaptive_balanced(argv: list[str]) -> None:
+    """``adaptive_balanced``: its options parsed from ``argv``, its runs, its results file."""
+    parser = argparse.ArgumentParser(
+        prog="error_control.py adaptive_balanced", description=section(__doc__, "adaptive_balanced")
+    )
+    parser.add_argument("--ne", type=int, default=16)
+    parser.add_argument("--cases", nargs="+", default=list(BALANCED_CASES), choices=list(BALANCED_CASES))
+    parser.add_argument("--pairs", nargs="+", default=["rk43", "kgu352"])
+    parser.add_argument("--balances", nargs="+", type=float, default=[0.1])
+    parser.add_argument("--results", help="the results file's stem (default adaptive_balanced)")
+    args = parser.parse_args(argv)
+    quiet_warp()
+    with recorded(__file__, f"adaptive_balanced/{args.results or 'adaptive_balanced'}") as figures:
+        print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        for stepper in ("rk4", "kgu35", "fbrk32", *args.pairs):  # compiled before any timing
+            run("tc5_mountain", args.ne, 0.25, stepper)
+        for pair in args.pairs:
+            run("tc5_mountain", args.ne, 0.25, pair, control={"control": "balanced"})
+        for label in args.cases:
+            balanced_runs(args, label, figures)
+        print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+HARD_START_CASES = ("tc5_mountain", "tc6_rossby_haurwitz", "tc6_rossby_haurwitz_inviscid", "galewsky")
+
+
+def stable_dt(case: str, ne: int, pair: str) -> float:
+    """The pair's largest stable Δt (s) at the case's start on ne np4: its Courant limit over
+    the initial state's largest signal rate; an IMEX pair's (gravity waves implicit) its
+    advective limit over the largest |v|/Δx."""
+    cls = STEPPERS[pair]
+    if cls.courant_limit is None:
+        sim = build(case, ne, 1.0, pair)
+        rate = sim.courant()["courant_advective"] / sim.scene.dt  # max |v| / Δx at the start, s⁻¹
+        return cls.advective_courant_limit / rate
+    base = build(case, ne, 1.0, pair).scene
+    limits = explicit_limits(base, "cpu")
+    rate = STEPPERS["leapfrog"].courant_limit / limits["dt_leapfrog"]  # (|v| + sqrt(g h)) / Δx, s⁻¹
+    return STEPPERS[pair].courant_limit / rate
+
+
+def hard_start_case(case: str, args, out: dict) -> None:
+    days = load_scene(case).days
+    print(f"\n## {case} ne{args.ne} np4, {days:g} days, rtol {args.rtol:g}", flush=True)
+    print(f"{'pair':10s} {'start':22s} {'first dt':>9s} {'finished':>8s} accepted rejected   CPU s  ratio")
+    rows = {}
+    for pair in args.pairs:
+        dt = stable_dt(case, args.ne, pair)
+        base = None
+        for label, factor, cap in (("stable step", 1, None), ("5x, default cap", 5, None), ("5x, no cap", 5, False)):
+            control = {"control": "error", "rtol": args.rtol} | ({} if cap is None else {"cfl": cap})
+            r = run(case, args.ne, days, pair, dt=factor * dt, control=control)
+            base = base or r["cpu"]
+            done = "no" if r["blowup"] else "yes"
+            print(
+                f"{pair:10s} {label:22s} {factor * dt:9.1f} {done:>8s} {r['accepted']:8d} {r['rejected']:8d} "
+                f"{r['cpu']:7.2f} {r['cpu'] / base:6.2f}",
+                flush=True,
+            )
+            rows[f"{pair} {label}"] = {
+                "first_dt": factor * dt,
+                "blowup": r["blowup"],
+                "accepted": r["accepted"],
+                "rejected": r["rejected"],
+                "cpu": r["cpu"],
+                "ratio": r["cpu"] / base,
+            }
+    out[case] = {"days": days, "runs": rows}
+
+
+def adaptive_hard_start(argv: list[str]) -> None:
+    """``adaptive_hard_start``: its options parsed from ``argv``, its runs, its results file."""
+    parser = argparse.ArgumentParser(
+        prog="error_control.py adaptive_hard_start", description=section(__doc__, "adaptive_hard_start")
+    )
+    parser.add_argument("--ne", type=int, default=8)
+    parser.add_argument("--cases", nargs="+", default=list(HARD_START_CASES))
+    parser.add_argument("--pairs", nargs="+", default=["bs32", "rdpk3sp35", "ssprk43", "dp54"])
+    parser.add_argument("--rtol", type=float, default=1e-4)
+    parser.add_argument("--results", help="results/adaptive_hard_start/<STEM>.json (default: the script's stem)")
+    args = parser.parse_args(argv)
+    unknown = [pair for pair in args.pairs if pair not in STEPPERS]
+    if unknown:
+        parser.error(f"--pairs: unknown {', '.join(unknown)} (the steppers: swe-sphere list)")
+    quiet_warp()
+    with recorded(__file__, f"adaptive_hard_start/{args.results or 'adaptive_hard_start'}") as figures:
+        print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        figures["rtol"], figures["ne"] = args.rtol, args.ne
+        for case in args.cases:
+            hard_start_case(case, args, figures)
+        print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
 if __name__ == "__main__":
-    main()
+    studies(__doc__, {name: globals()[name] for name in STUDIES})

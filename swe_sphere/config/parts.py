@@ -1,6 +1,6 @@
 """What a scene makes of itself on a rank: the part of its grid (``partition``), its model
 (``ShallowWater.from_scene``) and its stepper (``scene_stepper``, after ``check_hyperviscosity``).
-One path for a run (``simulation.build``) and a gradient (``adjoint.gradient.scene_model``), so a
+One path for a run (``members.units.element_unit``) and a gradient (``adjoint.gradient.scene_model``), so a
 gradient is taken of the model and stepper a run steps."""
 
 from __future__ import annotations

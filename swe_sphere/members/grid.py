@@ -5,7 +5,7 @@ are those of its own member, in the grid's order. A ``Topology`` and a ``Shallow
 it therefore compute each member as the grid alone would: element-local kernels see the same
 numbers, and the DSS sums the same copies in the same order (the same bits). What is global over
 the grid (a spectral radius, a mean, a norm) is the ensemble's over all members, not a member's:
-the caller takes those from the one grid (``simulation.members.Members``).
+the caller takes those from the one grid (``members.members.Members``).
 """
 
 from __future__ import annotations

@@ -12,6 +12,8 @@ from ..core.arguments import array_argument, got, integer_argument, number_argum
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 
+ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
+
 # the highest spherical-harmonic degree a perturbation's band may name: far past any grid's
 # resolution here (ne120 np4 resolves l ≈ 720), a typo beyond it
 MAX_DEGREE = 2048

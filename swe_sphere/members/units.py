@@ -17,16 +17,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config.parts import scene_stepper
+from ..cases.scoring import Scorer
+from ..cases.tracers import with_tracers
+from ..config.parts import partition, scene_stepper
+from ..config.scene import Scene
 from ..core.arguments import got
-from ..core.errors import ArgumentError
+from ..core.backend import Backend
+from ..core.errors import ArgumentError, ResourceError
+from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..integrator.core import Unit
+from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS
+from ..steppers.initialization import digital_filter
 from .grid import MemberGrid
-from .initial import Variants
+from .initial import ON_ROOT, Variants
 
 # a blow-up's policies: every member stopped, or the member dropped (no longer stepped, NaN in the
 # run file from then on) and the others going on
@@ -54,6 +61,68 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
         raise ArgumentError(f"layout: these members need a model each ({', '.join(why)}): 'in_turn'")
     default = "shared" if str(device).startswith("cuda") or scene.control is not None else "in_turn"
     return "in_turn" if why else asked or default
+
+
+def check_memory(scene: Scene, comm, backend: Backend, members: int | None = None) -> None:
+    """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose estimated memory
+    exceeds what is available on its device (a GPU's free memory, else the host's): the whole run
+    on one process; over MPI ranks, the share of the ranks on each node, or on CUDA on each GPU
+    (each holds its elements, or its members; ``Backend.sharing``). A run of ``members`` (None: a
+    single run) holds a run's arrays a member (its copies of the grid, or a model each)."""
+    need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem) * (members or 1)
+    what = f"{scene.grid_text} with {scene.stepper}"
+    if (members or 1) > 1:
+        what = f"an ensemble of {members} members of {what}"
+    if comm is None or comm.size == 1:
+        return backend.check_memory(need, what)
+    local, where = backend.sharing(comm)  # the ranks whose arrays share this rank's memory
+    try:
+        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} {where})")
+        error = None
+    except ResourceError as err:
+        error = str(err)
+    errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
+    if errors:
+        err = ResourceError(errors[0])
+        err.on_every_rank = True  # the console script says it once (rank 0), without MPI_Abort
+        raise err
+
+
+def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: str) -> tuple:
+    """(the ``Unit`` of a single run, its digital filter's result or None, (case, topology, whole
+    grid, whole hs, whole fcor, scorer)): the one member of ``scene`` on this rank's share of the
+    elements over ``comm`` (``config.parts.partition``), started from ``start`` (3 + K, nnodes) on
+    rank 0 (``ON_ROOT`` on the others: a restart's), or from the function ``initial`` (lat, lon) ->
+    (h, u, v), else from the case's state, then the scene's digital filter and its tracers' masses
+    (``cases.tracers.with_tracers``). The whole grid, hs and fcor on rank 0 (None elsewhere)."""
+    case = scene.make_case()
+    topo = partition(scene, case, comm, backend)
+    local = topo.grid
+    grid = topo.whole_grid()  # for diagnostics and output: on rank 0 only
+    model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
+    fcor, hs = model.operators.fcor.numpy(), model.operators.hs.numpy()  # the case's, as the model holds them
+    whole_fcor, whole_hs = topo.gather(fcor), topo.gather(hs)
+    stepper = scene_stepper(scene, model)
+    scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
+    dfi = None
+    if start is None:
+        start = (
+            np.stack(case.initial(local.lat, local.lon))
+            if initial is None
+            else from_function(initial, local.lat, local.lon)
+        )
+        if scene.digital_filter is not None:
+            dfi = digital_filter(
+                scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo
+            )
+            start = dfi.x
+        start = with_tracers(start, scene.tracers, local.lat, local.lon)
+    else:
+        start = topo.distribute(None if start is ON_ROOT else start, model.rows, "start state")
+    if topo.comm.rank != 0:  # a fallback's warning once, from rank 0
+        model.launches.guard.warn = lambda line: None
+    unit = Unit.of(model, stepper, start[None], backend, graphs)
+    return unit, dfi, (case, topo, grid, whole_hs, whole_fcor, scorer)
 
 
 def shared_unit(scene, case, own, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):

@@ -1,11 +1,11 @@
 """The simulation layer: a run of a scene.
 
-``simulation.Simulation`` of one member or N (its loop, ``run``; its ``build``, ``members`` and
-restarts, ``checkpoint``; driven from Python), the
+``simulation.Simulation`` of one member or N (its loop, ``run``; its members built and
+diagnosed by ``members.members.Members``; restarts, ``checkpoint``; driven from Python), the
 step graphs (``core.graphs.GraphedSteps``), its activities (``activities``: one shape, a schedule
 and a call; ``writers``: run and restart files; ``schedules``), ``guard`` (what a run adds to the
 integrator's bad-state check), signals (``core.interrupts``), ``summary`` (counts and the result),
-``state_diagnostics``, ``checkpoint`` (a restart file as a run; branches).
+``checkpoint`` (a restart file as a run; branches).
 
 May import: every layer below (``core`` to ``config``, the ``integrator``, ``adjoint``, ``members``).
 """

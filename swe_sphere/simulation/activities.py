@@ -44,7 +44,7 @@ class Callback:
 
 
 def log_activity(log: Callable, schedule: EverySteps, files: RunFiles) -> Callback:
-    """``log(line)`` with ``StateDiagnostics.log_line`` every ``schedule`` steps (a ``Callback``;
+    """``log(line)`` with ``Members.log_line`` every ``schedule`` steps (a ``Callback``;
     rank 0, the fields gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its
     run state and diagnostics) recorded at this step when it did; the owner it is called with not
     read."""

@@ -25,9 +25,7 @@ from ..core.arguments import path_argument
 from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
 from ..io import restart_file
-from ..members.initial import Variants
-
-ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
+from ..members.initial import ON_ROOT, Variants
 
 
 @dataclass
@@ -126,7 +124,7 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
     """What ``Simulation.from_checkpoint`` (``members``: an ensemble's file) builds
     from: (the checkpoint read, the scene, the constructor's ``start`` and ``initial_diagnostics``,
     and whether it continues the file rather than branch from it: its stepper's history then
-    restored, ``restore_history``). ``CheckpointError`` (one line) for a path that is not one, a
+    restored, ``Simulation.restore``). ``CheckpointError`` (one line) for a path that is not one, a
     file ``checkpoint.read`` refuses, one of the other kind (an ensemble's, a single run's), or a
     continuation whose run to ``days`` ends before the checkpoint's day."""
     ck = checkpoint if isinstance(checkpoint, Checkpoint) else read_on_root(checkpoint, None if members else comm)
@@ -164,6 +162,8 @@ def restore_run(run, ck: Checkpoint, restore) -> None:
     do not fit), then its step, counters and step control, as if never stopped."""
     try:
         restore()
+    except CheckpointError:  # already one line (a state of another grid)
+        raise
     except ValueError as err:
         raise CheckpointError(f"checkpoint does not fit the stepper: {err}") from None
     run.core.step = ck.step
@@ -254,11 +254,11 @@ def from_checkpoint(
         states, layout, policy = member_starts(ck)
         both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
         sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
-        sim.restore_history(ck)
+        sim.restore(ck)
     else:
         sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)
         if whole:  # a continuation: the stepper's history, the counters and the step control as they were
-            sim.restore_history(ck)
+            sim.restore(ck, state=False)
     if whole:
         sim.restart_every = ck.restart_every  # the interval it wrote restart files at, kept
     if not isinstance(checkpoint, Checkpoint):

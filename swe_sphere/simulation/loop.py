@@ -103,7 +103,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     (a ``progress.ProgressLines`` or None), the seconds compiling added to ``compiling[0]``. The
     first output time recorded first (``start`` its gathered fields, ``diagnosed`` their diagnostics
     where taken), a continuation's not written again: the two files join without a repeat. ``ends``
-    the run's diagnostics (``state_diagnostics.StateDiagnostics`` or ``members.Members``): where
+    the run's diagnostics (``members.members.Members``): where
     they have a ``last_good`` state (a single run's) a blow-up's line is the files' attribute
     ``blowup`` and that state recorded, and on an exception the files are dropped; where not (a
     run of members') the files keep the line, or the exception's, as ``stopped``. A signal's step

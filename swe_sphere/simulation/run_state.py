@@ -1,5 +1,5 @@
 """A run's state beside its built parts (issue 100): ``RunState``, what the simulation's
-collaborators (its diagnostics, ``state_diagnostics.StateDiagnostics``) read of the run, not the
+collaborators (its members, ``members.members.Members``) read of the run, not the
 ``Simulation``: the step, the state x, the stepper (the integrator's), the
 scene it runs, its step control, its t = 0 diagnostics and counters, the model time reached."""
 

@@ -2,10 +2,9 @@
 Oceananigans' pattern: one short loop (``Simulation.run``) and around its steps a small part each
 (the package's doc lists them), of one member or N (issue 116: one driver). Its run loop, restarts
 and driving from Python are its own methods over the functions of ``loop`` and ``checkpoint`` (no
-mixins); ``build`` makes a single run's parts, ``members.Members`` N members', and its members'
-states and diagnostics are a component (``members``: ``state_diagnostics.StateDiagnostics`` of one,
-or ``members.Members``), whose answers the simulation's names give under one squeeze rule
-(``squeeze``; issue 124: one run of any size)."""
+mixins); ``members.members.Members`` builds its members for every N (a single run its one
+member) and is its states and diagnostics over (N, 3, n), whose answers the simulation's names
+give under one squeeze rule (``squeeze``; issue 124: one run of any size)."""
 
 from __future__ import annotations
 
@@ -30,27 +29,25 @@ from ..core.arguments import (
 )
 from ..core.backend import CHECK_EVERY_STEPS, Backend, pick_device
 from ..core.constants import DAY
-from ..core.errors import ArgumentError, BlowUp, CheckpointError, Interrupted, SceneError
+from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
 from ..integrator.control import StepControl
-from ..integrator.core import FixedDt, Integrator, Stop, Unit, forwarded
+from ..integrator.core import FixedDt, Integrator, Stop, forwarded
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
-from ..members.initial import asked
+from ..members.initial import ON_ROOT, asked
+from ..members.members import Members
 from ..members.units import member_step
 from . import checkpoint as ckpt
 from .activities import add_callback, log_activity
-from .build import ON_ROOT, build
 from .checkpoint import restore_run, write_restart
 from .guard import RunObserver
 from .intervals import Intervals
 from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
-from .members import Members
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
-from .state_diagnostics import MemberAxis, StateDiagnostics
 from .summary import Ledger, RunResult
-from .writers import Checkpointer, RunFiles
+from .writers import Checkpointer, RunFiles, opening
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
@@ -77,7 +74,7 @@ def _delegated(method, owner):
 
 
 def _squeezed(method):
-    """A simulation's method that is its members' (``MemberAxis``) method of ``method``'s name, its
+    """A simulation's method that is its members' (``Members``) method of ``method``'s name, its
     answer squeezed (``squeeze``), whose doc it has."""
     name = method.__name__
     return functools.wraps(method)(
@@ -182,12 +179,12 @@ class Simulation:
     inputs : tuple of Path
         The files the simulation was made from (scene file, restart file), which
         ``run`` refuses to write over.
-    members : StateDiagnostics or Members
+    members : Members
         The members' states and diagnostics over (N, 3, n), N = ``len(members)``, the member axis
-        first in every answer: a single run's (``state_diagnostics.StateDiagnostics``: its fields
-        gathered on rank 0, invariants, errors, Courant numbers, the log line) or N members'
-        (``members.Members``: also ``held``, ``layout``, ``units``, ``copies``, ``alike``,
-        ``initial_states``, …). ``ensemble`` and ``diagnostics`` are its deprecated names.
+        first in every answer (``members.members.Members``: their fields gathered on rank 0,
+        invariants, errors, Courant numbers, ``units``, ``held``, ``layout``, ``copies``, ``alike``,
+        ``initial_states``, …; ``members.members`` N, None for a single run, whose files are a single
+        run's). ``ensemble`` and ``diagnostics`` are its deprecated names.
     intervals : Intervals
         The run's intervals in whole steps and Δt fitted to them (``intervals``); ``every``,
         ``fitted_dt``, ``use_dt`` and ``fit_dt`` are also the simulation's.
@@ -283,59 +280,38 @@ class Simulation:
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
         with compile_timer(self._compile), threadpool_limits(limits=1, user_api="blas"):
-            if many:
-                parts = (scene, members, initial, backend, comm, graphs, layout, blow_up)
-                self._build_members(*parts, per_element=per_element, threads=threads)
-            else:
-                self._build_one(scene, backend, progress, comm, start, initial, initial_diagnostics, graphs)
+            options = {"given": start, "per_element": per_element, "threads": threads}
+            m = self.members = Members(scene, members, initial, backend, comm, graphs, layout, blow_up, **options)
+            self.case, self.grid, self.root, self.dfi, self.topology = m.case, m.grid, m.root, m.dfi, m.topology
+            self.model, self.progress = m.units[0].model, self.progress and m.root
+            self.hs, self.fcor, self.g = (None, None, self.model.g) if m.hs is None else (m.hs[0], m.fcor[0], m.g[0])
+            self.scorer = m.scorer and m.scorer[0]  # a single run's (members': built when first asked)
+            # the one step loop over the units: members' a block watched, a checked step plain (``member_step``)
+            more = {} if m.members is None else {"anywhere": m.anywhere, "drop": blow_up == "drop", "lone": False}
+            self.core = Integrator(m.units, FixedDt(member_step) if more else None, **more)
+            self.core.out = m.out  # the units dropped
+            m.run = self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
+            if initial_diagnostics is None:  # before the step control: their Courant numbers at the scene's dt
+                self.run_state.initial = m.diagnose(scene.start_day * DAY)
+            if scene.control is not None:  # Δt chosen step to step: the loop's steps land on its times
+                self._control(scene, m)
             self.counters["iterations"].update(dict.fromkeys(self.core.units[0].stepper.solvers, 0))
         self.intervals = Intervals(self.run_state, self.activities, self.members, own_dt)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
 
-    def _build_one(self, scene, backend, progress, comm, start, initial, initial_diagnostics, graphs) -> None:
-        """A single run's parts (``build``), on this rank's elements."""
-        # the build's parts the simulation's attributes, the state and stepper its integrator's (not kept
-        # whole: a stepper built anew, ``fit_dt``, would leave the first one's arrays held there)
-        parts = build(scene, backend, progress, comm, start, initial)  # in the order of ``build``'s doc
-        self.case, self.topology, self.root, self.progress, self.grid, self.model = parts[:6]
-        self.fcor, self.hs, self.scorer, self.dfi, stepper, start = parts[6:]
-        # the start on the device, the stepper prepared on it (``FixedDt``: graphed steps)
-        self.core = Integrator([Unit.of(self.model, stepper, start[None], backend, graphs)])
-        # what the run's collaborators read of it: its step, state, scene, control, t = 0 diagnostics, counters
-        self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
-        self.g = self.model.g
-        parts = (self.model, self.topology, self.grid, self.case, self.scorer, self.hs, self.fcor, self.root)
-        self.members = StateDiagnostics(self.run_state, *parts)
-        # the step control made after the start's diagnostics: their Courant numbers at the scene's dt
-        if initial_diagnostics is None:
-            self.initial = self.members.diagnose(scene.start_day * DAY)
-        # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
-        if scene.control is not None:
-            self.control = StepControl(scene.control, self.core.units[0], scene.start_day)
-
-    def _build_members(self, scene, members, initial, backend, comm, graphs, layout, blow_up, **options) -> None:
-        """N members' parts (``members.Members``): their units, over the ranks of ``comm`` by member."""
-        m = self.members = Members(scene, members, initial, backend, comm, graphs, layout, blow_up, **options)
-        self.case, self.grid, self.root, self.dfi = m.case, m.grid, m.root, None
-        self.progress = self.progress and m.root
-        self.model = m.units[0].model
-        self.topology, self.hs = self.model.topology, m.hs[0]
-        # the one step loop over the units: a block watched, a checked step plain (``member_step``)
-        self.core = Integrator(m.units, FixedDt(member_step), anywhere=m.anywhere, drop=blow_up == "drop", lone=False)
-        self.core.out = m.out  # the units dropped
-        if scene.control is not None:  # one Δt for every member: in the same launches, on one rank
-            if m.layout != "shared" or m.comm is not None:
-                where = "over MPI ranks" if m.comm is not None else "each on a model of its own"
-                raise ArgumentError(
-                    f"scene: its dt is controlled (time.control = {scene.control.mode!r}), which an ensemble takes "
-                    "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
-                    f"blow_up 'stop'), not {where}"
-                )
-            self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
-        m.run = self.run_state = RunState(self.core, scene)
-        self.run_state.initial = m.diagnose(scene.start_day * DAY)  # each member's t = 0 diagnostics, (N,) by name
+    def _control(self, scene, m: Members) -> None:
+        """The integrator's step control (``integrator.control.StepControl``): one Δt for every member,
+        in the same launches, on one rank (else ``ArgumentError``)."""
+        if m.members and (m.layout != "shared" or m.comm is not None):
+            where = "over MPI ranks" if m.comm is not None else "each on a model of its own"
+            raise ArgumentError(
+                f"scene: its dt is controlled (time.control = {scene.control.mode!r}), which an ensemble takes "
+                "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
+                f"blow_up 'stop'), not {where}"
+            )
+        self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
 
     # -- restarts and branches (``checkpoint``)
     from_checkpoint = classmethod(ckpt.from_checkpoint)
@@ -350,17 +326,17 @@ class Simulation:
     time = forwarded("run_state.time", "Days since t = 0 at the current step (``RunState.time``).")
     event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
-    # -- the members' states and diagnostics (``state_diagnostics.MemberAxis``), squeezed (``squeeze``)
-    fields = _squeezed(StateDiagnostics.fields)
-    divergence = _squeezed(StateDiagnostics.divergence)
-    courant = _squeezed(MemberAxis.courant)
-    stability_warning = _squeezed(MemberAxis.stability_warning)
-    largest_dt_within_limit = _squeezed(MemberAxis.largest_dt_within_limit)
-    invariants = _squeezed(StateDiagnostics.invariants)
-    errors = _squeezed(StateDiagnostics.errors)
-    states = _delegated(StateDiagnostics.states, attrgetter("members"))
-    set_states = _delegated(StateDiagnostics.set_states, attrgetter("members"))
-    h_spread_rms = _delegated(MemberAxis.h_spread_rms, attrgetter("members"))
+    # -- the members' states and diagnostics (``members.members.Members``), squeezed (``squeeze``)
+    fields = _squeezed(Members.fields)
+    divergence = _squeezed(Members.divergence)
+    courant = _squeezed(Members.courant)
+    stability_warning = _squeezed(Members.stability_warning)
+    largest_dt_within_limit = _squeezed(Members.largest_dt_within_limit)
+    invariants = _squeezed(Members.invariants)
+    errors = _squeezed(Members.errors)
+    states = _delegated(Members.states, attrgetter("members"))
+    set_states = _delegated(Members.set_states, attrgetter("members"))
+    h_spread_rms = _delegated(Members.h_spread_rms, attrgetter("members"))
 
     # -- the step: the integrator's (``integrator.core.Integrator``, one unit of one member) and its graphs
     step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
@@ -510,12 +486,12 @@ class Simulation:
 
         def blocks(bar) -> Stop:
             # the steps under the run's guard, members dropped where they blow up (``Members.drop``)
-            observer = RunObserver(*parts, bar, lines, d.drop)
+            observer = RunObserver(*parts, bar, lines, d.drop if d.members else None)
             return run_steps(self.core, observer, d.describe, until_step, until_day)
 
         # the run's own activities (the log after the user's), a single run's solver counters read with the check
         every = self.scene.log_every_steps
-        one = isinstance(self.members, StateDiagnostics)
+        one = d.members is None
         more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
         during = own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
         how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}
@@ -660,25 +636,12 @@ class Simulation:
 
     # -- restarts: its state and history restored from a checkpoint, its restart file written
 
-    def restore(self, ck: ckpt.Checkpoint) -> None:
-        """Set every member's state, stepper history, the counters and t = 0 invariants from a
-        checkpoint of the run's kind (``CheckpointError`` for a state of another grid)."""
-        if isinstance(self.members, StateDiagnostics):  # ck.x on rank 0 only (``checkpoint.read_on_root``)
-            try:
-                x = self.topology.distribute(ck.x, self.model.rows, "checkpoint state")
-            except ValueError as err:
-                raise CheckpointError(str(err)) from None
-            self.x.assign(x)
-        self.restore_history(ck)
-
-    def restore_history(self, ck: ckpt.Checkpoint) -> None:
-        """The stepper histories, counters, step control and t = 0 invariants of a checkpoint (a single
-        run's state is already ``ck.x``; members take theirs with their histories, ``Members.restore``)."""
-        if isinstance(self.members, StateDiagnostics):
-            restore_run(self.run_state, ck, lambda: self.stepper.restore(ck.stepper_state))
-            self.initial = ck.initial
-        else:
-            restore_run(self.run_state, ck, lambda: self.members.restore(ck))
+    def restore(self, ck: ckpt.Checkpoint, *, state: bool = True) -> None:
+        """Set every member's state, stepper history, the counters, the step control and t = 0
+        invariants from a checkpoint of the run's kind (``CheckpointError`` for a state of another
+        grid, or a history that does not fit the stepper); ``state`` False: a single run's state
+        left as it is (built from ``ck``'s, ``from_checkpoint``: handed out over the ranks once)."""
+        restore_run(self.run_state, ck, lambda: self.members.restore(ck, state))
 
     def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
         """Write a restart file of the current step (see ``checkpoint``): whole-grid
@@ -706,7 +669,7 @@ class Simulation:
         with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
             start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank
         name = f"swe_sphere.{type(self).__name__}.run"
-        courant, first, attrs, more = d.opening(files, start, history, name, self.dfi, self.device)
+        courant, first, attrs, more = opening(d, files, start, history, name, self.dfi, self.device)
         if output is not None and self.root:
             files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
         return files, ckp, start, courant, first

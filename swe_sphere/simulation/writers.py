@@ -6,8 +6,11 @@ import functools
 import math
 from pathlib import Path
 
+from ..cases.scoring import truth
 from ..core.runtime import package_version
 from ..io.run_file import OUTPUT_FIELDS, RunWriter, history_line
+from ..members.units import POLICIES
+from .checkpoint import branch_attrs
 from .schedules import at_marks, is_due, output_marks, restart_marks
 
 
@@ -35,6 +38,47 @@ def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
         "scene": scene.as_dict(),
         **{k: getattr(scene, k) for k in ("case", "ne", "np", "stepper", "dt", "precision")},
     }
+
+
+def opening(d, files, start, history: str | None, name: str, dfi, device: str) -> tuple:
+    """(the Courant numbers of a single run's ``start`` (members: none), the members' first
+    diagnostics (a single run: None, the files take them), the global attributes of the run's files
+    ``files``, and what else ``RunFiles.open`` takes (members: ``members``, ``member_series``, which
+    ``files`` gets)) of the run of members ``d`` (``members.members.Members``; ``start`` its
+    ``gather_fields``): what ran (``scene_attrs``; ``name`` the caller), where (on ``device`` over the
+    MPI ranks), from which start (the digital filter ``dfi`` or None; members: ``initial_states``), its
+    command line (``history``), a single run's Courant numbers at the start and a branch's origin."""
+    s, run = d.run.scene, d.run
+    more = {**run.stepper.attrs(), "device": device}  # e.g. which Butcher table ran
+    again = {"continued_from_day": run.time} if run.step else {}
+    if d.members:
+        first = d.diagnose(run.seconds(run.step), whole=start)
+        files.member_series = tuple(first)
+        attrs = {
+            **scene_attrs(s, "ensemble", history, name),
+            **more,
+            "ensemble_layout": d.layout,
+            "members": d.members,
+            "initial_states": d.initial_states,
+            "blow_up_policy": POLICIES[d.blow_up],
+            **again,
+        }
+        return {}, first, attrs, {"members": d.members, "member_series": files.member_series}
+    courant = d.bcast(d.courant_at(start.u, start.v, start.h, d.g[0]) if d.root else None)
+    attrs = {
+        **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
+        **more,
+        "mpi_ranks": d.topology.comm.size,
+        "initialization": "none" if s.initialization is None else s.initialization["method"],
+        "reference": truth(d.case, s.reference_file),  # what the error series are against
+        # planet_radius (m), planet_omega (1/s), planet_gravity (m/s^2)
+        **{f"planet_{k}": v for k, v in s.planet.items()},
+        **(dfi.attrs(s.digital_filter) if dfi is not None else {}),
+        **again,
+        **branch_attrs(s),
+        **{k: v for k, v in courant.items() if math.isfinite(v)},
+    }
+    return courant, None, attrs, {}
 
 
 class RunFiles:

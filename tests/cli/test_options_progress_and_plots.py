@@ -88,7 +88,7 @@ def test_an_ensemble_too_large_for_memory_is_refused_before_it_is_built(capsys, 
     """`run tc2_steady --ne 4 --days 0.1 --members 100000` printed nothing for 90 s (no memory
     check), where `--ne 100000` is refused at once with its estimate."""
     import swe_sphere.core.runtime as runtime
-    import swe_sphere.simulation.members as members
+    import swe_sphere.members.members as members
     from swe_sphere.simulation.simulation import Simulation
 
     monkeypatch.setattr(runtime, "available_memory", lambda: 2**30)

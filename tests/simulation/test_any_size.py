@@ -68,7 +68,7 @@ def _calls(sim, tmp_path) -> dict:
     out["after"] = sim.states()
     call("write_checkpoint", lambda: sim.write_checkpoint(tmp_path / "ck.nc").name)
     call("write_again", lambda: sim.write_checkpoint(tmp_path / "ck.nc"))  # nothing replaced unless asked
-    with_members = len(sim.members) > 1 or "members" in type(sim.members).__name__.lower()
+    with_members = sim.members.members is not None  # N, or None: a single run's files
     call(
         "from_checkpoint",
         lambda: Simulation.from_checkpoint(tmp_path / "ck.nc", "cpu", progress=False, members=with_members).step,
@@ -76,7 +76,7 @@ def _calls(sim, tmp_path) -> dict:
     ck = read(tmp_path / "ck.nc")
     sim.set_states(start)
     call("restore", lambda: (sim.restore(ck), sim.states())[1])
-    call("restore_history", lambda: (sim.restore_history(ck), sim.step)[1])
+    call("restore_state_kept", lambda: (sim.restore(ck, state=False), sim.step)[1])
     call("try_step", lambda: sim.try_step(sim.x).rhs_evals)
     return out
 

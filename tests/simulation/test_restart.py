@@ -28,9 +28,9 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import OutputError
 from swe_sphere.grid.topology import Topology
 from swe_sphere.io.output_files import ExclusiveFile
+from swe_sphere.members.members import Members
 from swe_sphere.simulation import checkpoint as ckpt
 from swe_sphere.simulation.simulation import Simulation
-from swe_sphere.simulation.state_diagnostics import StateDiagnostics
 from swe_sphere.steppers import STEPPERS
 
 from helpers import EIGHTH_DAY, TINY, cli_main, cli_one_line, make_sim, requires_cuda, write_tc2_scene
@@ -100,13 +100,11 @@ def test_continuing_hands_each_whole_grid_array_out_once(tmp_path, monkeypatch):
     start state either (gathers, the reference at day 0): the checkpoint has its t = 0 figures."""
     r = make_sim(tc2("leapfrog", steps=2)).run(None, restart_file=tmp_path / "r.nc", restart_every=2 * DT / DAY)
     handed, diagnosed = [], []
-    real, real_diagnose = Topology.distribute, StateDiagnostics.diagnose
+    real, real_diagnose = Topology.distribute, Members.diagnose
     monkeypatch.setattr(
         Topology, "distribute", lambda self, whole, rows, what: handed.append(what) or real(self, whole, rows, what)
     )
-    monkeypatch.setattr(
-        StateDiagnostics, "diagnose", lambda self, t, *a: diagnosed.append(t) or real_diagnose(self, t, *a)
-    )
+    monkeypatch.setattr(Members, "diagnose", lambda self, t, *a: diagnosed.append(t) or real_diagnose(self, t, *a))
     cont = Simulation.from_checkpoint(r.checkpoint, "cpu", days=4 * DT / DAY, progress=False)
     assert handed == ["start state", "leapfrog stepper state 'previous'"]
     assert diagnosed == []

@@ -13,6 +13,7 @@ from .config.state_scene import is_state_file
 from .core.arguments import flag_argument, number_argument, path_argument
 from .core.backend import pick_device
 from .core.errors import OutputError, SceneError
+from .io.reanalysis import given
 from .simulation.simulation import Simulation
 
 
@@ -133,24 +134,19 @@ def _run(scene, overrides, device, output_file, overwrite, restart_every, progre
 @contextlib.contextmanager
 def state_source(scene, overrides: dict):
     """(scene, overrides) as ``run`` takes them, a reanalysis file's path (``*.nc``) or an
-    ``xarray.Dataset`` made into its ``Scene`` (``config.scene.load_scene``; the Dataset written to a
-    temporary file for the run's length), with no overrides left; else as given."""
+    ``xarray.Dataset`` made into its ``Scene`` (``config.scene.load_scene``; the Dataset read as it is
+    for the run's length, ``io.reanalysis.given``), with no overrides left; else as given."""
     import xarray as xr
 
     if not (isinstance(scene, xr.Dataset) or is_state_file(scene)):
         yield scene, overrides
         return
     keywords = {name: overrides.pop(key) for key, name in LOAD_KEYWORDS.items() if key in overrides}
-    with tempfile.TemporaryDirectory(prefix="swe_sphere_") as tmp:
-        if not isinstance(scene, xr.Dataset):
-            yield load_scene(scene, overrides=flat_overrides(overrides), **keywords), {}
-            return
-        path = Path(tmp) / "dataset.nc"
-        scene.to_netcdf(path)
-        try:
-            yield load_scene(path, overrides=flat_overrides(overrides), **keywords), {}
-        except SceneError as err:  # the Dataset's refusals name it, not the temporary file that holds it
-            raise SceneError(str(err).replace(f"initial file {path}", "the Dataset given")) from None
+    if not isinstance(scene, xr.Dataset):
+        yield load_scene(scene, overrides=flat_overrides(overrides), **keywords), {}
+        return
+    with given(scene) as name:  # read as it is (no file written), named as given
+        yield load_scene(name, overrides=flat_overrides(overrides), **keywords), {}
 
 
 __all__ = ["run"]

@@ -22,6 +22,7 @@ from ..core.errors import SceneError
 from ..grid.gll import NP_MAX, NP_MIN, gll
 from ..grid.quality import smallest_dx
 from ..io.initial_state import SCENE_CASES
+from ..io.reanalysis import is_given
 from ..io.run_file import OUTPUT_FIELDS
 from ..mesh.records import MeshFile, with_ne
 from ..model.limiter import LIMITERS
@@ -116,7 +117,7 @@ def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
         raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
     reference = params.pop("reference", None)
     for key in FILE_KEYS.get(name, ()):  # a file the case reads: relative to here, else to the scene's folder
-        if isinstance(params.get(key), str):
+        if isinstance(params.get(key), str) and not is_given(params[key]):
             given = Path(params[key]).expanduser()
             beside = scene_path.parent / given
             params[key] = str((beside if not given.exists() and beside.exists() else given).absolute())

@@ -87,6 +87,7 @@ from ..core.arguments import instance_argument, mapping_argument
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
+from ..io.reanalysis import is_given
 from .control import cfl_notes, is_controlled, resolve_control
 from .hyperviscosity import (
     HYPERVIS_EXPONENT,
@@ -246,8 +247,9 @@ def load_scene(
         scene = load_scene(
             TEMPLATE, **keywords, overrides=overrides | start_overrides(path), restart_every=restart_every
         )
-        description = f"Williamson et al. (1992) case 7 from {Path(path).name} (settings of {TEMPLATE})"
-        return dataclasses.replace(scene, name=Path(path).stem, description=description)
+        name, source = ("dataset", "an xarray.Dataset") if is_given(path) else (Path(path).stem, Path(path).name)
+        description = f"Williamson et al. (1992) case 7 from {source} (settings of {TEMPLATE})"
+        return dataclasses.replace(scene, name=name, description=description)
     given = {"ne": ne, "np_": np_, "dt": dt, "days": days, "stepper": stepper, "precision": precision}
     return _resolve(resolve_path(str(path)), given, mesh, overrides, restart_every)
 

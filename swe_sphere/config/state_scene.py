@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 
 from ..io.formats import is_netcdf, refuse_grib
+from ..io.reanalysis import is_given
 
 TEMPLATE = "tc7_era_july"  # the settings a file alone runs with: case 7's (TC6's rules: grid, dt, ∇⁴)
 NETCDF = (".nc", ".nc4", ".netcdf", ".cdf")
@@ -14,10 +15,12 @@ NETCDF = (".nc", ".nc4", ".netcdf", ".cdf")
 
 def is_state_file(scene) -> bool:
     """Whether ``scene`` (a scene's name or path, as ``run`` takes it) names a netCDF state, not a
-    scene: by its name's suffix, else by its first bytes (``io.formats``); ``SceneError`` for a
+    scene: a Dataset given in Python (``reanalysis.given``), by its name's suffix, else by its first bytes (``io.formats``); ``SceneError`` for a
     GRIB file, which is no scene either."""
     if not isinstance(scene, (str, os.PathLike)):
         return False
+    if is_given(scene):
+        return True
     refuse_grib(scene, str(scene))
     return str(scene).lower().endswith(NETCDF) or is_netcdf(scene)
 

@@ -31,7 +31,9 @@ height and wind as an initial state); ducc0 (Reinecke), ``ducc0.sht``.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -140,8 +142,36 @@ def _surface(surface, lmax: int, weights, where: str) -> np.ndarray:
     return weights * ducc0.sht.analysis_2d(map=values[None], spin=0, lmax=lmax, geometry=rings, phi0=phi0)[0]
 
 
+GIVEN = "xarray.Dataset"  # the start of a case's initial_file that names a Dataset given in Python (``given``)
+_given: dict[str, tuple[int, object]] = {}  # such a name → (a token of this Dataset, the Dataset), while given
+_tokens = itertools.count()
+
+
+def is_given(name) -> bool:
+    """Whether a reanalysis case's ``initial_file`` ``name`` names a Dataset given in Python (``given``)."""
+    return isinstance(name, str) and name.startswith(GIVEN)
+
+
+@contextlib.contextmanager
+def given(dataset):
+    """The name under which a reanalysis case reads ``dataset`` (an ``xarray.Dataset``) as its
+    ``initial_file`` while inside, which its run files record: ``GIVEN``, with the file it was
+    opened from and its title where it has them (no temporary file; a restart file keeps its analysed
+    state, ``restart_file.ANALYSED``, so a continuation needs neither)."""
+    about = (("opened from", dataset.encoding.get("source")), ("title", dataset.attrs.get("title")))
+    about = "; ".join(f"{what} {' '.join(str(value).split())}" for what, value in about if value)
+    name = GIVEN + (f" ({about})" if about else "")
+    _given[name] = (next(_tokens), dataset)
+    try:
+        yield name
+    finally:
+        del _given[name]
+
+
 @functools.lru_cache(maxsize=4)
 def _cached(path, stamp, level, time, truncation, grid_degree, surface, planet):
+    if path in _given:  # a Dataset given in Python, ``stamp`` its token
+        return analyse(_given[path][1], level, time, truncation, grid_degree, surface, planet, "the Dataset given")
     return analyse(path, level, time, truncation, grid_degree, surface, planet)
 
 
@@ -184,7 +214,8 @@ class Reanalysis(Case):
             state = _kept(self.analysed_file, _stamp(self.analysed_file))
         else:
             key = (self.level, self.time, self.truncation, self.grid_degree, self.surface_file, self.planet)
-            state = _cached(self.initial_file, _stamp(self.initial_file), *key)
+            given = _given.get(self.initial_file)
+            state = _cached(self.initial_file, _stamp(self.initial_file) if given is None else given[0], *key)
         object.__setattr__(self, "_state", state)
 
     @property
@@ -200,7 +231,8 @@ class Reanalysis(Case):
         return self._state.at(lat, lon)["hs"]
 
     def notes(self) -> tuple:
-        return (f"read from {Path(self.initial_file).name}: {self._state.read}",)
+        name = self.initial_file if is_given(self.initial_file) else Path(self.initial_file).name
+        return (f"read from {name}: {self._state.read}",)
 
     def initial(self, lat, lon):
         return _initial(self._state.at(lat, lon), self.initial_file, self.surface_file)

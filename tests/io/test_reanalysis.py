@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -368,6 +369,7 @@ def test_a_run_from_a_file_and_a_scene_from_one(capsys, tmp_path, monkeypatch):
     from_file = xr.open_dataset("state_ne2np4_kgu35_0.25d.nc", decode_times=False)
     scene = xr.open_dataset("reanalysis_in_tc2_steady_ne2np4_ssprk3_0.25d.nc", decode_times=False)
     ds = swe_sphere.run(_dataset(), ne=2, days=0.25, device="cpu")
+    assert json.loads(ds.attrs["scene"])["case_params"] == {"initial_file": "xarray.Dataset"}  # as given
     h0 = from_file.h.isel(time=0).values
     assert np.array_equal(h0, scene.h.isel(time=0).values) and np.array_equal(h0, ds.h.isel(time=0).values)
     mean = float((from_file.area * h0).sum() / from_file.area.sum())
@@ -429,6 +431,34 @@ def test_a_continuation_needs_no_input_file(capsys, tmp_path, monkeypatch):
         assert json.loads(rest.attrs["scene"])["notes"][0] == read and f"note        {read}\n" in whole_out
     kept, again = read_analysed("half.restart.nc"), read_analysed("rest.restart.nc")  # the next continuation's
     assert kept["read"] == again["read"] and all(np.array_equal(kept[k], again[k]) for k in ANALYSED)
+
+
+def test_a_packed_dataset_runs_as_given_and_continues_without_it(capsys, tmp_path, monkeypatch):
+    """A Dataset opened from a packed file (int16 with scale_factor and add_offset, as ERA5 ships)
+    runs with every warning an error (xarray's SerializationWarnings came from writing it to a
+    temporary file), its run file records it as the Dataset given (the file it was opened from,
+    its title), not a temporary file, and its restart file continues with that file gone."""
+    import swe_sphere
+
+    monkeypatch.chdir(tmp_path)
+    ds = _dataset().assign_attrs(title="a synthetic\n500 hPa state")
+    for name in ("z", "u", "v"):
+        lo, hi = float(ds[name].min()), float(ds[name].max())
+        ds[name].encoding = {"dtype": "int16", "scale_factor": (hi - lo) / 65000.0, "add_offset": (hi + lo) / 2}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", xr.SerializationWarning)  # no _FillValue: none is needed here
+        ds.to_netcdf("packed.nc")
+    with xr.open_dataset("packed.nc") as packed, warnings.catch_warnings():
+        assert packed.z.encoding["dtype"] == np.int16
+        warnings.simplefilter("error")
+        out = swe_sphere.run(packed, ne=2, days=0.25, device="cpu", restart_every=0.25, output_file="d.nc")
+    scene = json.loads(out.attrs["scene"])
+    name = f"xarray.Dataset (opened from {tmp_path / 'packed.nc'}; title a synthetic 500 hPa state)"
+    assert scene["case_params"] == {"initial_file": name} and scene["notes"][0].startswith(f"read from {name}: z as")
+    assert not any("swe_sphere_" in str(value) for value in out.attrs.values())  # no temporary folder named
+    Path("packed.nc").unlink()
+    code, _, err = cli_main(capsys, "run", "--continue", "d.restart.nc", "--days", "0.5", "--output", "c.nc")
+    assert code == 0, err
 
 
 def test_case_7_starts_from_its_reference_and_is_scored_against_it(capsys, tmp_path, monkeypatch):

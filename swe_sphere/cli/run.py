@@ -191,15 +191,20 @@ def _new_run(args) -> tuple:
 def _continuation(args) -> tuple:
     """(None: the restart file's scene, the restart file's members or None, the output) of ``run
     --continue R``; an ensemble's restart file continues as an ensemble."""
-    from ..io.restart_file import ensemble_members
+    from ..io.restart_file import glance
 
-    members = ensemble_members(args.continue_from)
+    stored = glance(args.continue_from)
+    members = stored["members"]
     if args.members is not None and members != args.members:
         held = "a single run" if members is None else f"{members} members"
         raise SceneError(f"--members {args.members}: {args.continue_from} holds {held}")
-    _check_ensemble_options(args, members)
+    # another stepper or dt than the file's: a branch (the file's own: a continuation, as in Python)
+    stepper, dt = (
+        None if value == stored[key] else value for key, value in (("stepper", args.stepper), ("dt", args.dt))
+    )
+    _check_ensemble_options(args, members, (stepper, dt), (stored["stepper"], stored["dt"]))
     stem = args.continue_from.name.removesuffix(".nc").removesuffix(".restart")
-    changes = "".join(f"_{v}" for v in (args.stepper, args.dt and f"dt{args.dt:g}") if v)  # a branch's (or a no-op's)
+    changes = "".join(f"_{v}" for v in (stepper, dt and f"dt{dt:g}") if v)  # a branch's
     name = f"{stem}_{'branch' + changes if changes else 'continued'}.nc"
     return None, members, args.output or args.continue_from.with_name(name)
 
@@ -221,13 +226,14 @@ def _progress_lines(args):
     return ProgressLines(lambda line: print(f"progress    {line}", flush=True), every)
 
 
-def _check_ensemble_options(args, members: int | None) -> None:
+def _check_ensemble_options(args, members: int | None, changed=(None, None), own=(None, None)) -> None:
     """``SceneError`` for the ensemble's options where they do not go together (before anything
     is built): --perturbation, --seed, --perturbation-degrees, --initial, --layout or --blow-up without an
     ensemble (``members``: --members, or the member count of the restart file continued),
     --perturbation-degrees without --perturbation, --initial with a perturbation, those with
-    a continuation (its members start from the file), --stepper, --dt, --layout or --blow-up with an
-    ensemble's continuation (no branches yet)."""
+    a continuation (its members start from the file), --layout, --blow-up, or a --stepper or --dt
+    other than the file's (``changed``: those given that differ from ``own``, the restart file's
+    stepper and dt; None where not) with an ensemble's continuation (no branches yet)."""
     starts = (
         ("--perturbation", args.perturbation),
         ("--seed", args.seed),
@@ -250,19 +256,20 @@ def _check_ensemble_options(args, members: int | None) -> None:
     if args.continue_from is not None:
         if given:
             raise SceneError(f"{' and '.join(given)}: a continued ensemble's members start from its restart file")
-        branch = [
-            flag
+        given = [
+            f"{flag} {value:g}" if isinstance(value, float) else f"{flag} {value}"
             for flag, value in (
-                ("--stepper", args.stepper),
-                ("--dt", args.dt),
+                ("--stepper", changed[0]),
+                ("--dt", changed[1]),
                 ("--layout", args.layout),
                 ("--blow-up", args.blow_up),
             )
             if value is not None
         ]
-        if branch:
+        if given:
             raise SceneError(
-                f"{' and '.join(branch)}: an ensemble continues with its own stepper, dt, layout and blow-up policy (no branches yet)"
+                f"{' and '.join(given)}: an ensemble continues with its own stepper, dt, layout and blow-up policy "
+                f"(no branches yet; the file's: {own[0]}, dt = {own[1]:g} s)"
             )
 
 

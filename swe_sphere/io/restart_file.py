@@ -233,14 +233,19 @@ def read_analysed(path) -> dict:
         raise CheckpointError(f"{path}: its analysed reanalysis state cannot be read ({err})") from None
 
 
-def ensemble_members(path) -> int | None:
-    """The member count of an ensemble's restart file ``path``; None for a single run's, or
-    for a file that is not a readable restart file (``read`` says why)."""
+def glance(path) -> dict:
+    """What a command line checks of the restart file ``path`` before reading it: {"members": an
+    ensemble's member count, "stepper" and "dt" (s): its scene's}, each None for a single run's (members),
+    or for a file that is not a readable restart file (``read`` says why)."""
     try:
         with netCDF4.Dataset(path, "r") as ds:
-            return int(ds.ensemble_members) if "ensemble_members" in ds.ncattrs() else None
-    except (OSError, ValueError, TypeError):
-        return None
+            attrs = ds.__dict__
+        scene = json.loads(attrs["scene"])
+        return {"members": int(attrs["ensemble_members"]) if "ensemble_members" in attrs else None} | {
+            key: scene.get(key) for key in ("stepper", "dt")
+        }
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        return dict.fromkeys(("members", "stepper", "dt"))
 
 
 def read(path) -> dict:

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
+import xarray as xr
 
 from helpers import TINY, cli_main, one_line
 
@@ -55,19 +57,31 @@ def test_a_continuation_says_its_dt_notes_as_the_continued_run_s(capsys):
 
 
 def test_an_ensemble_s_continuation_branches_in_python_no_more_than_on_the_command_line(capsys):
-    """`run --continue E --stepper rk4` is refused for an ensemble's file; Python's
-    ``from_checkpoint(E, members=True, stepper=..., dt=...)`` branched it: refused alike now, and
-    the same stepper and dt given (no branch) continue."""
+    """`run --continue E --stepper S` is refused for an ensemble's file where S is not its own
+    stepper (saying the file's), and continues it where S and --dt are its own (refused before,
+    whatever they were); Python's ``from_checkpoint(E, members=True, stepper=..., dt=...)``
+    branched it: refused alike now, and the same stepper and dt given (no branch) continue."""
     import swe_sphere
     from swe_sphere.core.errors import SceneError
 
     args = (*RUN, "--days", "0.25", "--members", "2", "--perturbation", "1", "--restart-every", "0.25")
     code, _, err = cli_main(capsys, *args, "--output", "e.nc")
     assert code == 0, err
-    code, _, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "0.5", "--stepper", "rk4")
-    one_line(code, err, 2, "--stepper: an ensemble continues with its own stepper, dt")
     own = swe_sphere.Simulation.from_checkpoint("e.restart.nc", "cpu", members=True, progress=False)
     other = "ssprk3" if own.scene.stepper != "ssprk3" else "rk4"
+    code, _, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "0.5", "--stepper", other)
+    one_line(code, err, 2, f"--stepper {other}: an ensemble continues with its own stepper, dt")
+    assert f"the file's: {own.scene.stepper}, dt = {own.scene.dt:g} s" in err and not Path("e_continued.nc").exists()
+    same = ("--stepper", own.scene.stepper, "--dt", f"{own.scene.dt!r}", "--no-progress")
+    code, out, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "0.5", *same)
+    assert code == 0 and "ensemble    2 members" in out, err
+    code, _, err = cli_main(capsys, "run", "--continue", "e.restart.nc", "--days", "0.5", "--output", "plain.nc")
+    assert code == 0, err
+    with (
+        xr.open_dataset("e_continued.nc", decode_times=False) as a,
+        xr.open_dataset("plain.nc", decode_times=False) as b,
+    ):
+        assert list(a.time.values) == [0.5] and np.array_equal(a.h.values, b.h.values)
     for branch in ({"stepper": other}, {"dt": own.scene.dt / 2}):
         with pytest.raises(SceneError, match="an ensemble continues with its own stepper and dt") as raised:
             swe_sphere.Simulation.from_checkpoint("e.restart.nc", "cpu", members=True, progress=False, **branch)

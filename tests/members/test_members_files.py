@@ -258,8 +258,8 @@ def test_the_command_line_continues_an_ensemble(capsys, tmp_path):
     assert cli_main(capsys, *run, "--restart-every", "0.25", "--output", first)[0] == 0
     restart = tmp_path / "g.restart.nc"
     for args, says in [
-        (("--dt", "450"), "--dt: an ensemble continues with its own stepper, dt, layout and blow-up policy"),
-        (("--blow-up", "drop"), "--blow-up: an ensemble continues with its own stepper, dt, layout and blow-up policy"),
+        (("--dt", "450"), "--dt 450: an ensemble continues with its own stepper, dt, layout and blow-up policy"),
+        (("--blow-up", "drop"), "--blow-up drop: an ensemble continues with its own stepper, dt, layout and blow-up"),
         (("--members", "3"), "--members 3: "),
         (("--seed", "1"), "--seed: a continued ensemble's members start from its restart file"),
     ]:

@@ -42,7 +42,7 @@ where the machine's load moves a single run's clock by 20 %).
 With ``--dt-runs PAIR@RTOL[@CFL] ...`` only Galewsky's Δt over time at those tolerances instead
 (tighter ones, where the error controller and not the Courant cap sets the step; CFL a
 ``time.cfl``, ``false``: no cap): the reference, then each run's temporal error, steps, CPU s a
-day and Δt a day; written to ``results/adaptive_ne30_dt.json`` (``--results``: another name).
+day and Δt a day; written to ``results/control_ne30/adaptive_ne30/adaptive_ne30_dt.json`` (``--results``: another name).
 
 ``control_overhead``
 ~~~~~~~~~~~~~~~~~~~~

@@ -64,7 +64,7 @@ file written; the helpers are ``adaptive_proportionality``'s. For each case:
   accepted and rejected steps, the smallest, mean and largest Δt, CPU s, and the CPU ratio to
   the fixed run.
 
-Written to ``results/adaptive_balanced.json`` (``--results``: another name).
+Written to ``results/error_control/adaptive_balanced/adaptive_balanced.json`` (``--results``: another name).
 
 ``adaptive_hard_start``
 ~~~~~~~~~~~~~~~~~~~~~~~

@@ -21,7 +21,7 @@ precision changes); mass, energy and potential enstrophy relative change over th
 time loop's wall ms a step after the first output (the run file's ``wall_time``: Warp's compile of
 a new kernel, in the first step, left out), its whole loop's wall s and the process's CPU s of each
 run (set-up and compile included). Verdict: "float32 holds" where |e32 − e64| ≤ 10 %
-of e64. Printed as a markdown table; figures to ``results/precision_accuracy.json``.
+of e64. Printed as a markdown table; figures to ``results/precision_accuracy/precision_accuracy.json``.
 """
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ divides), by latency, or by the loop Warp's CPU backend makes of it.
 
 ``--precisions float64 float32`` adds each grid's model with a float32 tendency (the tendency's
 kernel and the DSS reading it in float32; its % peak of float32's 16 lanes, twice float64's).
-Written to ``results/kernel_roofline.json`` (``--results``: another stem).
+Written to ``results/kernel_roofline/kernel_roofline.json`` (``--results``: another stem).
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ import pandas as pd
 from swe_sphere.studies import frontier
 
 HERE = Path(__file__).resolve().parent
-RESULTS = HERE.parents[1] / "benchmarks" / "results"  # a folder per script
+RESULTS = HERE.parents[2] / "benchmarks" / "results"  # a folder per script (its studies and run sets in folders below)
 DINOSAUR = "Dinosaur 1.5.1, imex_rk_sil3 + filter"
 HOMME = "HOMME sweqx (E3SM 75e17cce), ne16 np4"
 # case: (the frontier's field in the peer benchmark's rows, its results files: (file, the
@@ -75,7 +75,7 @@ def peers(case: str) -> list[dict]:
     field, sources = CASES[case]
     out = []
     for name, model, label, prefix in sources:
-        runs = json.loads(next(RESULTS.glob(f"*/{name}")).read_text())["figures"]["runs"]
+        runs = json.loads(next(RESULTS.glob(f"**/{name}")).read_text())["figures"]["runs"]
         out += [
             {
                 "model": model,

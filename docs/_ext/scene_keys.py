@@ -150,7 +150,12 @@ KEYS = {
     "tracers.initial": (
         "none",
         "each tracer's initial field, by name: constant, latitude, cosine_bells, gaussian_hills, slotted_cylinders, "
-        "correlated_bells (Lauritzen et al. 2012)",
+        "correlated_bells (Lauritzen et al. 2012), or a variable of tracers.file",
+    ),
+    "tracers.file": (
+        "none",
+        "a netCDF file of initial mixing ratios, on the model's nodes (a run file) or a lat-lon grid (interpolated), "
+        "its last time; relative to the working folder, else to the scene file's",
     ),
 }
 

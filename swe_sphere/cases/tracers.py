@@ -87,8 +87,8 @@ TRACER_FIELDS = {
 }
 
 
-def with_tracers(state: np.ndarray, tracers: tuple, lat, lon) -> np.ndarray:
-    """``state`` (3, n: u, v, h) with a row of mass hq (m) for each of ``tracers`` ((name,
-    initial field), a scene's) below it, q its bundled field at (lat, lon) (rad): (3 + K, n)."""
+def with_tracers(state: np.ndarray, fields: tuple, lat, lon) -> np.ndarray:
+    """``state`` (3, n: u, v, h) with a row of mass hq (m) for each of ``fields`` (functions of
+    (lat, lon) giving q: a scene's ``tracer_fields()``) below it, q at (lat, lon) (rad): (3 + K, n)."""
     h = state[2]
-    return np.concatenate([state, *(h[None] * TRACER_FIELDS[field](lat, lon)[None] for _, field in tracers)])
+    return np.concatenate([state, *(h[None] * field(lat, lon)[None] for field in fields)])

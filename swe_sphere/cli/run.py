@@ -140,6 +140,7 @@ def command(args) -> int:
             restart_marks(scene, args.restart_every)  # its refusals before set-up
     params = scene.case_params if scene is not None else {}
     initial = params.get("path", params.get("initial_file"))  # a file case's initial state: an input too
+    tracer_file = None if scene is None else scene.tracer_file  # [tracers] file: another input
     if args.continue_from is not None and restart_path(output).resolve() == args.continue_from.resolve():
         raise OutputError(
             f"--output {output}: its restart file would be {restart_path(output)}, the file --continue reads "
@@ -147,7 +148,7 @@ def command(args) -> int:
         )
     check_distinct(
         [output, restart_path(output)],
-        [args.continue_from, args.scene and resolve_path(str(args.scene)), initial, args.initial],
+        [args.continue_from, args.scene and resolve_path(str(args.scene)), initial, args.initial, tracer_file],
     )
     if not args.overwrite:
         _refuse_a_blown_up_run(output)

@@ -21,7 +21,7 @@ from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
 from ..grid.gll import NP_MAX, NP_MIN, gll
 from ..grid.quality import smallest_dx
-from ..io.initial_state import SCENE_CASES
+from ..io.initial_state import SCENE_CASES, read_tracer_file
 from ..io.reanalysis import is_given
 from ..io.run_file import OUTPUT_FIELDS
 from ..mesh.records import MeshFile, with_ne
@@ -102,6 +102,14 @@ FILE_KEYS = {
 }  # a case's keys naming files
 
 
+def file_of(value: str, scene_path: Path) -> str:
+    """The absolute path of a file a scene's key names: relative to the current folder where it is
+    there, else to the scene file's folder (a bundled scene's data beside it)."""
+    given = Path(value).expanduser()
+    beside = scene_path.parent / given
+    return str((beside if not given.exists() and beside.exists() else given).absolute())
+
+
 def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
     """The [case] table resolved on ``planet``: a ``case.path`` (the "file" case) relative to the
     current folder, else to ``scene_path``'s folder; a ``case.reference`` located and checked
@@ -116,11 +124,9 @@ def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
     if method not in METHODS:
         raise SceneError(f"case.initialization must be one of {', '.join(METHODS)} (got {method!r})")
     reference = params.pop("reference", None)
-    for key in FILE_KEYS.get(name, ()):  # a file the case reads: relative to here, else to the scene's folder
+    for key in FILE_KEYS.get(name, ()):  # a file the case reads (not a Dataset given to swe_sphere.run)
         if isinstance(params.get(key), str) and not is_given(params[key]):
-            given = Path(params[key]).expanduser()
-            beside = scene_path.parent / given
-            params[key] = str((beside if not given.exists() and beside.exists() else given).absolute())
+            params[key] = file_of(params[key], scene_path)
     try:
         case = make_case(name, params, planet, SCENE_CASES)
     except ValueError as err:
@@ -362,10 +368,11 @@ def resolve_tracers(
     table: dict, case: ResolvedCase, terms: tuple, stepper: str, controlled: bool, precision: str
 ) -> tuple:
     """``Scene.tracers`` of the [tracers] table: ((name, initial), ...), ``names`` the tracers'
-    run-file names and ``initial`` their bundled fields (``cases.tracers.TRACER_FIELDS``), one
-    each; () without the table. Raises ``SceneError`` (one line naming the key): names that are
-    not distinct identifiers or that are a run file's own field or coordinate, an unknown
-    field, lists of other lengths, a case whose h is not a depth (TC1's is itself a tracer, zero
+    run-file names and ``initial`` their initial fields, one each: a bundled field's name
+    (``cases.tracers.TRACER_FIELDS``) or, with a ``file``, a variable of that file
+    (``resolve_tracer_file``); () without the table. Raises ``SceneError`` (one line naming the
+    key): names that are not distinct identifiers or that are a run file's own field or
+    coordinate, an unknown field (without a file), lists of other lengths, a case whose h is not a depth (TC1's is itself a tracer, zero
     off its bell: q = hq / h has no value there), a scene without the continuity term (the tracers ride it),
     or a stepper, step control or precision that does not carry them (``Stepper.tracers_refusal``)."""
     if not table:
@@ -379,8 +386,11 @@ def resolve_tracers(
     if not isinstance(initial, list) or len(initial) != len(names):
         raise SceneError(f"tracers.initial must list a field for each of the {len(names)} names (got {initial!r})")
     for f in initial:
-        if f not in TRACER_FIELDS:
-            raise SceneError(f"tracers.initial: unknown field {f!r} (known: {', '.join(TRACER_FIELDS)})")
+        if not isinstance(f, str) or not f or (f not in TRACER_FIELDS and "file" not in table):
+            raise SceneError(
+                f"tracers.initial: unknown field {f!r} (known: {', '.join(TRACER_FIELDS)}; "
+                "or a variable of a netCDF file given as tracers.file)"
+            )
     if not case.case.h_is_depth:
         raise SceneError(f"[tracers] needs a fluid depth: case {case.name}'s h is itself a tracer (q = hq / h)")
     if "continuity" not in terms:
@@ -393,6 +403,26 @@ def resolve_tracers(
     if why is not None:
         raise SceneError(f"[tracers] with stepper {stepper}: {why}; tracers run with the explicit Runge-Kutta steppers")
     return tuple(zip(names, initial, strict=True))
+
+
+def resolve_tracer_file(table: dict, scene_path: Path) -> str | None:
+    """``Scene.tracer_file`` of the [tracers] table (``resolve_tracers``' first): its ``file``'s
+    absolute path (``file_of``), the file read and its variables that ``initial`` names checked
+    (``io.initial_state.read_tracer_file``); None without one. Raises ``SceneError`` (one line
+    naming the file): a file no ``initial`` reads from (each a bundled field), a missing file or
+    variable, a variable on neither the model's nodes nor a lat-lon grid of the globe,
+    non-finite values."""
+    if "file" not in table:
+        return None
+    from_file = tuple(dict.fromkeys(f for f in table["initial"] if f not in TRACER_FIELDS))
+    if not from_file:
+        raise SceneError(
+            f"tracers.file = {table['file']!r}: no tracers.initial names a variable of it (each is a bundled field); "
+            "drop tracers.file"
+        )
+    path = file_of(table["file"], scene_path)
+    read_tracer_file(path, from_file)
+    return path
 
 
 def resolve_tracer_hyperviscosity(table: dict, terms: tuple) -> bool:

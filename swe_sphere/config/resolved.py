@@ -6,16 +6,18 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..cases.library import make_case
 from ..cases.reference import reference_path
+from ..cases.tracers import TRACER_FIELDS
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
-from ..io.initial_state import SCENE_CASES
+from ..io.initial_state import SCENE_CASES, read_tracer_file
 from ..mesh.records import MeshRecord, from_json, with_ne
 from ..steppers.initialization import DigitalFilter
 from .schema import SceneControl, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime
@@ -98,8 +100,12 @@ class Scene:
         [numerics] precision: "float64" (the default) or "float32", the RHS tendency's type
         (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64.
     tracers : tuple of (str, str)
-        [tracers]: each passive tracer's name and its bundled initial field
-        (``cases.tracers.TRACER_FIELDS``), carried as hq in the state's rows 3..; (): none.
+        [tracers]: each passive tracer's name and its initial field, bundled
+        (``cases.tracers.TRACER_FIELDS``) or a variable of ``tracer_file``, carried as hq in the
+        state's rows 3..; (): none (``tracer_fields``: the fields as functions).
+    tracer_file : str or None
+        [tracers] file: the netCDF file (absolute path) of the initial fields that are not
+        bundled (``io.initial_state.read_tracer_file``); None: none.
     tracer_limiter : str
         [tracers] limiter: "none" or "optimization", the tracers' shape-preserving limiter
         (``model.limiter``: Guba et al. 2014, HOMME's limiter 8).
@@ -160,6 +166,7 @@ class Scene:
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
+    tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)
     tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
     tracer_hyperviscosity: bool = True  # [tracers] hyperviscosity: the depth's ∇⁴ on the tracers
 
@@ -221,6 +228,14 @@ class Scene:
         if hasattr(case, "grid_degree"):  # a reanalysis: its default truncation is what this grid resolves
             case = dataclasses.replace(case, grid_degree=self.grid_degree)
         return case
+
+    def tracer_fields(self) -> tuple:
+        """Each of ``tracers``' initial fields as a function of (lat, lon) (rad, any shape) giving
+        q of that shape: the bundled one, or ``tracer_file``'s variable (read once: ``SceneError``
+        for nodes that are not the file's)."""
+        from_file = tuple(dict.fromkeys(f for _, f in self.tracers if f not in TRACER_FIELDS))
+        state = read_tracer_file(self.tracer_file, from_file) if from_file else None
+        return tuple(TRACER_FIELDS[f] if f in TRACER_FIELDS else functools.partial(state, f) for _, f in self.tracers)
 
     @property
     def grid_degree(self) -> float:
@@ -288,6 +303,8 @@ class Scene:
             del d["precision"]
         if not d["tracers"]:  # none: a scene's dict as before the key
             del d["tracers"]
+        if d["tracer_file"] is None:  # the default, likewise
+            del d["tracer_file"]
         if d["tracer_limiter"] == "none":  # the default, likewise
             del d["tracer_limiter"]
         if d["tracer_hyperviscosity"]:  # the default, likewise

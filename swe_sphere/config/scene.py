@@ -64,6 +64,8 @@ the run length, the output interval and the hyperviscosity. Layout::
     [tracers]         names = ["dye"], initial = ["cosine_bells"]: passive tracers q carried as hq
                       by the depth's continuity (``cases.tracers.TRACER_FIELDS``: their
                       initial fields; explicit Runge-Kutta steppers at a fixed dt),
+                      file = "q.nc" (a netCDF file whose variables the other initial
+                      entries name: ``io.initial_state.read_tracer_file``),
                       limiter = "none" | "optimization" (Guba et al. 2014's, HOMME's limiter 8),
                       hyperviscosity = true | false (the depth's ∇⁴ on the tracers, ν_s ∇⁴ of
                       q(h + hs): true keeps q = 1 at 1; false leaves them undamped)
@@ -116,6 +118,7 @@ from .resolve import (
     resolve_stepper_days,
     resolve_stepper_options,
     resolve_terms,
+    resolve_tracer_file,
     resolve_tracer_hyperviscosity,
     resolve_tracers,
     scene_title,
@@ -325,6 +328,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
+        tracer_file=resolve_tracer_file(s.get("tracers", {}), path),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),
         tracer_hyperviscosity=resolve_tracer_hyperviscosity(s.get("tracers", {}), t.terms),
     )

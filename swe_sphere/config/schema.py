@@ -151,8 +151,8 @@ SCHEMA = {
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},
     "numerics": {"precision": str},  # "float64" or "float32": the tendency's (``resolve.resolve_precision``)
-    # passive tracers: names, their bundled initial fields, the limiter (``resolve_tracers``, ``resolve_limiter``)
-    "tracers": {"names": list, "initial": list, "limiter": str, "hyperviscosity": bool},
+    # passive tracers: names, their initial fields (bundled, or a file's variables), the limiter (``resolve_tracers``, ``resolve_limiter``)
+    "tracers": {"names": list, "initial": list, "limiter": str, "hyperviscosity": bool, "file": str},
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }

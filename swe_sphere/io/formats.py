@@ -36,3 +36,13 @@ def refuse_grib(path, where: str) -> None:
             f"{where}: a GRIB file, and states are read from netCDF: convert it (cdo -f nc copy {name} "
             f"{Path(name).stem}.nc) or download netCDF"
         )
+
+
+def file_stamp(path) -> tuple | None:
+    """(modification time in ns, size) of the file ``path``, the key under which a reader caches
+    what it read (a file changed since is read again); None for no such file."""
+    try:
+        st = Path(path).stat()
+        return (st.st_mtime_ns, st.st_size)
+    except (OSError, TypeError):
+        return None

@@ -26,6 +26,11 @@ A function (``initial=fn`` of ``swe_sphere.run`` and ``simulation.Simulation``):
 ``fn(lat, lon) -> (h, u, v)``, latitude and longitude in radians (arrays of the
 nodes), h in m, u and v in m s⁻¹, arrays of lat's shape (or scalars).
 
+Tracers' initial mixing ratios q (a scene's ``[tracers]`` ``file``, whose variables the
+``initial`` entries that are not bundled fields name; ``read_tracer_file``) are read from the
+same two layouts, each variable on ``ncol`` (a run file's tracers: a run's q continues another's)
+or on the lat-lon grid, at the file's last time; the values as they are, no units asked.
+
 Every problem raises ``SceneError`` (one line naming the file and
 variable): a missing variable, units other than m / m s⁻¹ where a ``units``
 attribute says so, a wrong shape, a non-finite value, h <= 0, nodes that are not
@@ -38,13 +43,13 @@ import functools
 import inspect
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from ..cases.library import CASES, Case, make_case
 from ..core.constants import Planet
 from ..core.errors import SceneError
+from .formats import file_stamp
 from .reanalysis import REANALYSIS_CASES
 from .restart_file import read as read_restart
 from .units import DEPTH_UNITS, LAT_UNITS, LON_UNITS, WIND_UNITS, units_ok
@@ -141,9 +146,10 @@ class LatLonState:
         from scipy.interpolate import RectBivariateSpline
 
         self.lon0 = lon[0]
-        u, v = fields.pop("u"), fields.pop("v")
-        east, north = east_north(lat[:, None], lon[None, :])
-        fields.update(zip(("ux", "uy", "uz"), u * east + v * north))  # Cartesian components: smooth at the poles
+        if "u" in fields:  # a state's winds (a tracer file's fields are scalars)
+            u, v = fields.pop("u"), fields.pop("v")
+            east, north = east_north(lat[:, None], lon[None, :])
+            fields.update(zip(("ux", "uy", "uz"), u * east + v * north))  # Cartesian components: smooth at the poles
         half = lon.size // 2
         # over a pole: latitude -180° - φ (south) or 180° - φ (north) at longitude λ is the point φ at
         # λ + 180°; the pole rows themselves (where a grid has them) are not repeated
@@ -175,16 +181,16 @@ class LatLonState:
         return np.sum(vec * east, axis=0), np.sum(vec * north, axis=0), self("h", lat, lon)
 
 
-def _values(ds, name: str, dims: tuple, where: str, t_index) -> np.ndarray | None:
+def _values(ds, name: str, dims: tuple, where: str, t_index, state: bool = True) -> np.ndarray | None:
     """Variable ``name`` of ``ds`` on ``dims`` (after taking time ``t_index``) as float64,
-    its units checked; None for a missing hs. Raises ``SceneError``."""
+    a state's (``state``: h, u, v, hs) units checked; None for a missing hs. Raises ``SceneError``."""
     if name not in ds.variables:
         if name == "hs":
             return None
         raise SceneError(f"{where}: no variable {name} ({WHAT[name]}); the file needs h, u, v (and optionally hs)")
     var = ds[name]
     units = var.attrs.get("units")
-    if units is not None and not units_ok(units, FIELD_UNITS[name]):
+    if state and units is not None and not units_ok(units, FIELD_UNITS[name]):
         raise SceneError(
             f"{where}: {name} has units {units!r}; {name} is {WHAT[name].split(', ')[0]} in "
             f"{'m' if FIELD_UNITS[name] is DEPTH_UNITS else 'm s-1'}"
@@ -227,17 +233,24 @@ def _axis(ds, names, allowed, where):
     return None, None
 
 
+def _lat_lon_axes(ds, where: str, what: str) -> tuple:
+    """(lat's name, lat, lon's name, lon) of ``ds``'s 1-D lat-lon grid (radians); ``SceneError``
+    ("{where}: {what} the model's nodes ... nor a lat-lon grid") where there is none."""
+    lat_name, lat = _axis(ds, ("lat", "latitude"), LAT_UNITS, where)
+    lon_name, lon = _axis(ds, ("lon", "longitude"), LON_UNITS, where)
+    if lat is None or lon is None:
+        raise SceneError(
+            f"{where}: {what} the model's nodes (ncol, lat, lon) nor a lat-lon grid (1-D coordinates lat and lon, degrees)"
+        )
+    return lat_name, lat, lon_name, lon
+
+
 def read_state(path, day: float | None = None):
     """``load_state`` of the file as it is now, kept while it is unchanged (a scene's
     case is made several times)."""
     if path is None:
         raise SceneError('case.path is missing: the netCDF file of the initial state (case name = "file")')
-    try:
-        st = Path(path).stat()
-        stamp = (st.st_mtime_ns, st.st_size)
-    except OSError:
-        stamp = None
-    return _cached(str(path), stamp, day)
+    return _cached(str(path), file_stamp(path), day)
 
 
 @functools.lru_cache(maxsize=4)
@@ -275,15 +288,17 @@ def load_state(path, day: float | None = None):
             check_state(*(fields[k] for k in ("h", "u", "v", "hs")), where)
             lat, lon = (_axis_ncol(ds, name, where) for name in ("lat", "lon"))
             return NodeState(where, lat, lon, fields)
-        lat_name, lat = _axis(ds, ("lat", "latitude"), LAT_UNITS, where)
-        lon_name, lon = _axis(ds, ("lon", "longitude"), LON_UNITS, where)
-        if lat is None or lon is None:
-            raise SceneError(
-                f"{where}: neither the model's nodes (ncol, lat, lon) nor a lat-lon grid "
-                "(1-D coordinates lat and lon, degrees)"
-            )
+        lat_name, lat, lon_name, lon = _lat_lon_axes(ds, where, "neither")
         fields = {name: _values(ds, name, (lat_name, lon_name), where, t) for name in ("h", "u", "v", "hs")}
     check_state(*(fields[k] for k in ("h", "u", "v", "hs")), where)
+    return lat_lon_state(lat, lon, fields, where)
+
+
+def lat_lon_state(lat, lon, fields: dict, where: str) -> LatLonState:
+    """A ``LatLonState`` of ``fields`` ((lat, lon) arrays, None: absent) on the 1-D ``lat`` and
+    ``lon`` (radians) of a file (``where``), the rows put south to north. Raises ``SceneError``:
+    fewer than 4 latitudes, rows that do not reach the poles (a regional grid), an odd or
+    non-uniform number of longitudes around the circle."""
     if np.any(np.diff(lat) < 0):
         lat = lat[::-1]
         fields = {k: None if f is None else f[::-1] for k, f in fields.items()}
@@ -315,6 +330,47 @@ def _axis_ncol(ds, name, where) -> np.ndarray:
     if name not in ds.variables or ds[name].dims != ("ncol",):
         raise SceneError(f"{where}: no {name} on ncol (the nodes' coordinates, degrees)")
     return np.radians(np.asarray(ds[name].values, dtype=np.float64))
+
+
+def read_tracer_file(path, names: tuple):
+    """The variables ``names`` of the tracer file ``path`` (module docstring) as a
+    ``NodeState`` or ``LatLonState``: ``state(name, lat, lon)`` gives q at the nodes (radians;
+    ``NodeState`` refuses nodes that are not the file's). Read once while the file is unchanged
+    (a scene's fields are asked for on every rank and every build). Raises ``SceneError``: a
+    missing file or variable, other dimensions, non-finite values, a lat-lon grid that is not
+    the globe's."""
+    return _cached_tracers(str(path), file_stamp(path), tuple(names))
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_tracers(path: str, stamp, names: tuple):
+    from .remap import open_netcdf  # here, not at the top: as load_state's
+
+    where = f"tracers.file = {path!r}"
+    try:
+        ds = open_netcdf(path)
+    except SceneError as err:
+        raise SceneError(f"{where}: {err}") from None
+    with ds:
+        missing = [n for n in names if n not in ds.data_vars]
+        if missing:
+            raise SceneError(
+                f"{where}: no variable {missing[0]} (the file's: {', '.join(map(str, ds.data_vars)) or 'none'}); "
+                "a tracers.initial that is not a bundled field names a variable of tracers.file"
+            )
+        t = _time_index(ds, None, where)
+        on_nodes = "ncol" in ds[names[0]].dims
+        if on_nodes:
+            dims = ("ncol",)
+            lat, lon = (_axis_ncol(ds, c, where) for c in ("lat", "lon"))
+        else:
+            lat_name, lat, lon_name, lon = _lat_lon_axes(ds, where, f"{names[0]} is on neither")
+            dims = (lat_name, lon_name)
+        fields = {n: _values(ds, n, dims, where, t, state=False) for n in names}
+    for name, f in fields.items():
+        if not np.all(np.isfinite(f)):
+            raise SceneError(f"{where}: {name} has {np.count_nonzero(~np.isfinite(f))} non-finite values (NaN or inf)")
+    return NodeState(where, lat, lon, fields) if on_nodes else lat_lon_state(lat, lon, fields, where)
 
 
 @dataclass(frozen=True)

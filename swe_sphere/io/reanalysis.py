@@ -45,6 +45,7 @@ from ..cases.reference import SpectralReference, reference_path, spectral_fields
 from ..core.constants import EARTH
 from ..core.errors import SceneError
 from . import restart_file
+from .formats import file_stamp
 from .reanalysis_file import RINGS, open_source, read_field
 
 
@@ -175,14 +176,6 @@ def _cached(path, stamp, level, time, truncation, grid_degree, surface, planet):
     return analyse(path, level, time, truncation, grid_degree, surface, planet)
 
 
-def _stamp(path):
-    try:
-        st = Path(path).stat()
-        return (st.st_mtime_ns, st.st_size)
-    except (OSError, TypeError):
-        return None
-
-
 @functools.lru_cache(maxsize=4)
 def _kept(path, stamp) -> Analysed:
     return Analysed(**restart_file.read_analysed(path))
@@ -211,11 +204,11 @@ class Reanalysis(Case):
         if self.initial_file is None:
             raise SceneError("case.initial_file is missing: the reanalysis file (netCDF) of the initial state")
         if self.analysed_file is not None:
-            state = _kept(self.analysed_file, _stamp(self.analysed_file))
+            state = _kept(self.analysed_file, file_stamp(self.analysed_file))
         else:
             key = (self.level, self.time, self.truncation, self.grid_degree, self.surface_file, self.planet)
             given = _given.get(self.initial_file)
-            state = _cached(self.initial_file, _stamp(self.initial_file) if given is None else given[0], *key)
+            state = _cached(self.initial_file, file_stamp(self.initial_file) if given is None else given[0], *key)
         object.__setattr__(self, "_state", state)
 
     @property

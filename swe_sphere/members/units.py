@@ -116,7 +116,7 @@ def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: s
                 scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo
             )
             start = dfi.x
-        start = with_tracers(start, scene.tracers, local.lat, local.lon)
+        start = with_tracers(start, scene.tracer_fields(), local.lat, local.lon)
     else:
         start = topo.distribute(None if start is ON_ROOT else start, model.rows, "start state")
     if topo.comm.rank != 0:  # a fallback's warning once, from rank 0

@@ -27,6 +27,7 @@ from ..io.initial_state import SCENE_CASES
 from ..io.output_files import check_distinct, check_target
 from ..io.remap import Remapper, member_label, member_view, open_netcdf, run_grid
 from ..io.run_file import member_statistics
+from ..mesh.records import from_json
 from .analysis import (
     DAY_TOL,
     DERIVED,
@@ -311,10 +312,14 @@ def figure_size(width) -> tuple[float, float]:
 
 
 def scene_label(ds) -> str:
+    """The run file ``ds``'s scene and grid in a title: ``tc5_mountain ne4 np4``; a mesh file's run
+    by the file's stem (its ne is 0), a mapped or stretched cube by its label (``mesh.records``)."""
     view = f", ensemble {ds.attrs['_member']}" if "_member" in ds.attrs else ""  # ``open_run``'s member
     try:
         s = json.loads(ds.attrs["scene"])
-        return f"{s['name']} ne{s['ne']} np{s['np']}{view}"
+        record = from_json(s["ne"], s.get("mesh"))
+        grid = f"ne{s['ne']}" if record is None else record.label
+        return f"{s['name']} {grid} np{s['np']}{view}"
     except (KeyError, ValueError, TypeError):
         return run_name(ds) + view
 

@@ -341,3 +341,17 @@ def test_a_figure_is_laid_out_once_to_the_bytes_of_matplotlibs_savefig(run_file)
             )
             assert figures.png_bytes(fig) == theirs.getvalue()
             assert isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)
+
+
+def test_a_title_names_a_mesh_run_by_its_mesh():
+    """A run on a mesh file (its scene's ne 0) is titled by the file's stem, a stretched cube by its
+    label, the equiangular cube by ne as before (``scene_label``), not "ne0"."""
+    import json
+
+    mesh = {"map": "element_local", "file": "/data/mountain_10_x2.g", "sha256": "0", "nelem": 24}
+    stretched = {"map": "element_local", "stretch_factor": 2.5, "target_lat": 40.0, "target_lon": 270.0}
+    for ne, record, said in ((0, mesh, "tc5_mountain mountain_10_x2 np4"), (4, stretched, "tc5_mountain ne4c2.5 np4")):
+        scene = {"name": "tc5_mountain", "ne": ne, "np": 4, "mesh": record}
+        assert plotting.scene_label(xr.Dataset(attrs={"scene": json.dumps(scene)})) == said
+    cube = {"name": "tc5_mountain", "ne": 4, "np": 4}
+    assert plotting.scene_label(xr.Dataset(attrs={"scene": json.dumps(cube)})) == "tc5_mountain ne4 np4"

@@ -82,4 +82,8 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "matplotlib_animations": False,
     "download_all_examples": False,
+    # no execution-time pages: sphinx-gallery writes them with DataTables, jQuery and Bootstrap
+    # from CDNs, which a site read offline cannot load (the pages' maths is Unicode text, so no
+    # page loads MathJax from its CDN either)
+    "write_computation_times": False,
 }

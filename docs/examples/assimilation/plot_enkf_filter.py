@@ -47,8 +47,9 @@ starts[:, 2] = (s.guess[2][first][:, None] + G @ rng.standard_normal((n, MEMBERS
 # 1999) and every member's state x_k (u, v, h at the unique nodes) is updated with perturbed
 # observations (Burgers et al. 1998; Houtekamer & Mitchell 2001):
 #
-# .. math:: x_k \leftarrow x_k + (\rho_{xy}\circ C_{xy})(\rho_{yy}\circ C_{yy} + R)^{-1}
-#           \bigl(y_j + \sigma\varepsilon_k - H(h_k)\bigr),\qquad R = \sigma^2 I,
+# .. code-block:: text
+#
+#     x_k ← x_k + (ρ_xy ∘ C_xy)(ρ_yy ∘ C_yy + R)⁻¹ (y_j + σ ε_k − H(h_k)),    R = σ² I,
 #
 # the covariances tapered by Gaspari & Cohn's function (half-width 1000 km); then the
 # ensemble goes on from the analyses (``Simulation.set_states``).

@@ -51,8 +51,9 @@ def forecast(X):
 # Each of the four updates runs the ensemble over the window, reads its heights at the points,
 # and moves every member with all the observations at once:
 #
-# .. math:: h_{0,k} \leftarrow h_{0,k} + C_{xy} (C_{yy} + \alpha R)^{-1}
-#           \bigl(y + \sqrt{\alpha}\,\sigma\,\varepsilon_k - H(h_k)\bigr),\qquad R = \sigma^2 I,
+# .. code-block:: text
+#
+#     h₀,k ← h₀,k + C_xy (C_yy + α R)⁻¹ (y + √α σ ε_k − H(h_k)),    R = σ² I,
 #
 # C_xy and C_yy the ensemble's covariances (of h0 with the predicted observations, and of
 # those among themselves), tapered by Gaspari & Cohn's (1999) function of distance with a

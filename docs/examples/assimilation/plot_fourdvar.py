@@ -17,7 +17,9 @@ every step, exact to round-off), so a quasi-Newton minimiser can fit a run to da
 # 30° N, 90° E, the wind held at the truth's. The unknowns are h(0) at the grid's unique
 # nodes, and L-BFGS-B (scipy) minimises
 #
-# .. math:: J(h_0) = \frac{1}{2}\,\frac{1}{4\pi a^2}\int \bigl(h(T; h_0) - h_t(T)\bigr)^2\, dA
+# .. code-block:: text
+#
+#     J(h₀) = ½ (1 / 4πa²) ∫ (h(T; h₀) − h_t(T))² dA
 #
 # (m²: half the mean-square misfit). ``_assimilation.recover_height`` wraps
 # ``swe_sphere.gradient(scene, steps, HeightMisfit(h_obs), x0=...)`` so that the gradient is

@@ -35,8 +35,9 @@ print(f"{POINTS} points at {len(s.cost.at_steps)} times (steps {s.cost.at_steps}
 # distance with L = 1000 km, and scaled by exp(−Δh_b²/L_h²) with L_h = 100 m so that
 # correlations follow the background's height contours, Riishøjgaard 1998). L-BFGS-B minimises
 #
-# .. math:: J(z) = \tfrac12 z^\mathsf{T} z + \sum_k \tfrac12 \sum_m
-#           \frac{\bigl((H h(t_k; h_0))_m - y_{km}\bigr)^2}{\sigma^2}
+# .. code-block:: text
+#
+#     J(z) = ½ zᵀz + Σ_k ½ Σ_m ((H h(t_k; h₀))_m − y_km)² / σ²
 #
 # with J_o and its gradient from one ``gradient`` call and dJ/dz = Gᵀ dJ_o/dh0 + z. At the
 # truth J_o is about half the number of observations (the noise's share).

@@ -15,7 +15,9 @@ that bring TC5's h + hs closest, after a day, to the bundled T341 spectral refer
 # The unknowns are p = (log s, log s_s): ν = ν_div = s ν₀ and ν_s = s_s ν₀ₛ, ν₀ and ν₀ₛ the
 # scene's own. The cost is half the mean square misfit of h + hs against the reference's,
 #
-# .. math:: J(p) = \frac{1}{2}\,\frac{1}{4\pi a^2}\int \bigl(h(T; p) + h_s - (h + h_s)_{\rm ref}(T)\bigr)^2\, dA
+# .. code-block:: text
+#
+#     J(p) = ½ (1 / 4πa²) ∫ (h(T; p) + hs − (h + hs)_ref(T))² dA
 #
 # and one ``gradient`` call gives J with ∂J/∂ν and ∂J/∂ν_s, so dJ/dp = (s ν₀ ∂J/∂ν, s_s ν₀ₛ ∂J/∂ν_s).
 import dataclasses

@@ -142,7 +142,7 @@ class Topology(RankReductions):
     rank r of a node on cuda:(r mod its GPUs)), and the exchanges go through host memory (``halo``).
     """
 
-    # False: the node gather on the CPU too (what benchmarks/archive/dss_by_element.py compares the rows
+    # False: the node gather on the CPU too (what benchmarks/archive/replaced_paths.py dss_by_element compares the rows
     # with, and how tests/core/test_cuda_compile.py finds the DSS kernels CUDA launches)
     element_rows = True
 

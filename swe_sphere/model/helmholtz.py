@@ -94,7 +94,7 @@ class HelmholtzSolver:
     to ``tol``, ``_refined``; float32 alone for a tol it reaches, as the JFNK
     preconditioner's 1e-2). On the CPU the float32 product is no faster than the
     float64 one (it is bound by its gathers, not its bytes:
-    ``benchmarks/micro/step/helmholtz_roofline.py``), so "double" is every stepper's default. ``warm``:
+    ``benchmarks/micro/step/roofline.py helmholtz_roofline``), so "double" is every stepper's default. ``warm``:
     with k = 0, start each CG from the last solution (for a sequence of similar solves, as
     the semi-implicit steps), else from zero.
 

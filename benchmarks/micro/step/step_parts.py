@@ -6,7 +6,7 @@ recorded launch (``wp.Launch.launch``), ``wp.copy``, ``zero_`` and ``assign`` ti
 clock around it and summed by kernel key: calls a step, ms a step and ms a call, and what the
 step spends outside them (Python, the stepper's bookkeeping). A kernel here reads what the
 passes before it left in the caches, which is why its figure differs from
-``kernel_roofline.py``'s (each kernel alone, repeated): e.g. Galewsky's DSS update 0.66 ms a call
+``roofline.py kernel_roofline``'s (each kernel alone, repeated): e.g. Galewsky's DSS update 0.66 ms a call
 in the step against 0.40 alone. One thread: run it with ``SWE_SPHERE_THREADS=1``. Figures to
 ``benchmarks/results/step_parts/step_parts[_STEM].json``::
 

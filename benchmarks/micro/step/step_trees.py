@@ -1,6 +1,6 @@
 """A step's CPU cost in several swe_sphere trees (an old commit against this one), one process
 each, in turn: what a change to the step saved, whole, beside the in-process benchmarks that
-isolate one part (``dss_by_element.py``, ``hyperviscosity_every.py``).
+isolate one part (``replaced_paths.py dss_by_element``, ``hyperviscosity_every.py``).
 
 For each ``--scene`` at its own grid, stepper and Δt (or ``--ne``/``--np``), each ``--source``
 tree (``git archive COMMIT | tar -x -C DIR``, with ``swe_sphere/testcases`` linked to

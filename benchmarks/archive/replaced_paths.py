@@ -1,4 +1,12 @@
-"""The element index innermost (issue 99, item 2's "vectorisation across elements"), measured
+"""What a replaced path justified, kept runnable (not kept current): each study measured a layout or
+an algorithm against the one the package took instead. One subcommand a study, each written to
+``results/replaced_paths/<study>/<stem>.json``::
+
+    python benchmarks/archive/replaced_paths.py STUDY [its options]   # STUDY --help: its options
+
+``across_elements``
+~~~~~~~~~~~~~~~~~~~
+The element index innermost (issue 99, item 2's "vectorisation across elements"), measured
 before it is built: two element passes in today's CPU layout against a layout with W elements a
 vector, both in one process, interleaved.
 
@@ -18,9 +26,24 @@ how far apart the two are (the largest difference over the largest value).
 Random fields, metric and dvv (the arithmetic, not the operator, is timed: depths and metdet
 kept positive); for each ``--case NP,NE,W``, ``--rounds`` rounds of about 2 M node updates each
 layout in turn, the median CPU ns a node (``time.process_time``, one thread) and the ratio.
-Figures to ``benchmarks/results/across_elements/across_elements[_STEM].json``::
+Figures to ``benchmarks/results/replaced_paths/across_elements/across_elements[_STEM].json``::
 
-    SWE_SPHERE_THREADS=1 taskset -c 0 python benchmarks/archive/across_elements.py --case 8,12,16 8,25,16 6,25,16 4,30,16 8,12,8 8,12,4
+    SWE_SPHERE_THREADS=1 taskset -c 0 python benchmarks/archive/replaced_paths.py across_elements --case 8,12,16 8,25,16 6,25,16 4,30,16 8,12,8 8,12,4
+
+``dss_by_element``
+~~~~~~~~~~~~~~~~~~
+The DSS by element on GLL rows (``kernels.dss.dss_update_elements``, the CPU's
+form since issue 99) against the node gather it replaced (``dss_rows``/``dss_update``): a step's
+CPU cost, both in one process, interleaved.
+
+For each ``--scene`` on its own grid (or ``--ne``/``--np``), at its own stepper and Δt, two models:
+one as shipped and one built with the node gather (``Topology.element_rows`` False); each stepped
+``--steps`` steps a round, ``--rounds`` rounds taken in turn so that a change of load hits both
+alike; the median CPU ms a step (``time.process_time``, one thread) and the ratio. The two give
+the same bits (tests/grid/test_dss_by_element.py); the run checks it on the states after the
+rounds. Figures to ``benchmarks/results/replaced_paths/dss_by_element/dss_by_element[_STEM].json``::
+
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/archive/replaced_paths.py dss_by_element --scene galewsky tc5_mountain
 """
 
 # no `from __future__ import annotations`: Warp reads the kernels' annotations as objects
@@ -30,20 +53,30 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from unittest import mock
 
 os.environ.setdefault("SWE_SPHERE_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import warp as wp  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
 
 wp.config.quiet = True
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import positive, recorded  # noqa: E402  (after the path: benchmarks/ first)
+from results import interleaved, positive, recorded, section, studies  # noqa: E402  (after the path: benchmarks/ first)
 
+from swe_sphere import Simulation  # noqa: E402
+from swe_sphere.grid.topology import Topology  # noqa: E402
 from swe_sphere.kernels.hyperviscosity_element import weak_laplacian_across  # noqa: E402
 from swe_sphere.kernels.operators import CPU_FAST, covariant, dvv_matrix, row_derivatives, times  # noqa: E402
 from swe_sphere.kernels.tendencies import finish, tendency_element  # noqa: E402
+
+STUDIES = (
+    "across_elements",
+    "dss_by_element",
+)  # the subcommands, a section of this docstring each
+
 
 TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient")  # galewsky's
 
@@ -62,8 +95,10 @@ def case(text: str) -> tuple[int, int, int]:
     return np_, ne, w
 
 
-def arguments():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def across_arguments(argv: list[str]):
+    p = argparse.ArgumentParser(
+        prog="replaced_paths.py across_elements", description=section(__doc__, "across_elements")
+    )
     p.add_argument(
         "--case",
         type=case,
@@ -71,8 +106,8 @@ def arguments():
         default=[(8, 12, 16), (8, 25, 16), (6, 25, 16), (4, 30, 16), (8, 12, 8), (8, 12, 4)],
     )
     p.add_argument("--rounds", type=positive(int), default=15)
-    p.add_argument("--results", default=None, help="the results file's stem (default: the script's)")
-    return p.parse_args()
+    p.add_argument("--results", default=None, help="the results file's stem (default: across_elements)")
+    return p.parse_args(argv)
 
 
 def laplacian_kernels(NP: int, W: int):
@@ -228,7 +263,7 @@ def layouts(NP: int, nelem: int, W: int):
     return rows, across, back, nb
 
 
-def measure(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
+def measure_across(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
     """One pass (``kind``: "laplacian" or "tendency") at one case in both layouts, interleaved:
     CPU ns a node (medians), the ratio, and whether the outputs are bitwise equal."""
     nelem, nn = 6 * ne * ne, NP * NP
@@ -256,7 +291,8 @@ def measure(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
         t_rows, t_across = wp.zeros((3, nelem * NP), dtype=r_in[0].dtype), wp.zeros((3, nb * nn), dtype=a_in[0].dtype)
         scratch = wp.zeros((5, nb * nn), dtype=a_in[0].dtype)
         g = f64(9.80616)
-        go_rows = lambda: wp.launch(k_rows, dim=nelem, inputs=[*r_in, g, dvv, t_rows, 0], device="cpu")  # noqa: E731
+        h0 = wp.types.vector(NP, f64)()  # the float32 tendency's reference depth, unread in float64
+        go_rows = lambda: wp.launch(k_rows, dim=nelem, inputs=[*r_in, g, h0, dvv, t_rows, 0], device="cpu")  # noqa: E731
         go_across = lambda: wp.launch(  # noqa: E731
             k_across, dim=nb, inputs=[*a_in, g, dvv, scratch, t_across, 0], device="cpu"
         )
@@ -287,11 +323,12 @@ def measure(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
     }
 
 
-def main() -> None:
-    args = arguments()
-    with recorded(__file__, args.results) as figures:
+def across_elements(argv: list[str]) -> None:
+    """``across_elements``: its options from ``argv``, its runs, its results file."""
+    args = across_arguments(argv)
+    with recorded(__file__, f"across_elements/{args.results or 'across_elements'}") as figures:
         print(f"load average at the start: {os.getloadavg()}")
-        out = [measure(kind, *c, args.rounds) for c in args.case for kind in ("laplacian", "tendency")]
+        out = [measure_across(kind, *c, args.rounds) for c in args.case for kind in ("laplacian", "tendency")]
         print(f"\nCPU ns a node, medians of {args.rounds} interleaved rounds, one thread")
         print(
             f"{'pass':>10} {'np':>3} {'ne':>4} {'W':>3} {'rows':>7} {'across':>7} {'ratio':>6} {'bitwise':>8} {'apart':>8}"
@@ -305,5 +342,61 @@ def main() -> None:
         print(f"load average at the end: {os.getloadavg()}")
 
 
+def dss_arguments(argv: list[str]):
+    p = argparse.ArgumentParser(prog="replaced_paths.py dss_by_element", description=section(__doc__, "dss_by_element"))
+    p.add_argument("--scene", nargs="+", default=["galewsky", "tc5_mountain"])
+    p.add_argument("--ne", type=positive(int), default=None)
+    p.add_argument("--np", type=positive(int), default=None)
+    p.add_argument("--steps", type=positive(int), default=48, help="steps a round")
+    p.add_argument("--rounds", type=positive(int), default=9)
+    p.add_argument("--results", default=None, help="results stem (default dss_by_element)")
+    return p.parse_args(argv)
+
+
+def measure_dss(scene: str, grid: dict, steps: int, rounds: int) -> dict:
+    """CPU ms a step of ``scene`` with the DSS by element and by node, interleaved."""
+    sims = {"element": Simulation(scene, "cpu", progress=False, days=1.0, graphs=False, **grid)}
+    with mock.patch.object(Topology, "element_rows", False):
+        sims["node"] = Simulation(scene, "cpu", progress=False, days=1.0, graphs=False, **grid)
+    assert sims["element"].model.topology.edges is not None and sims["node"].model.topology.edges is None
+    for sim in sims.values():  # recorded and compiled
+        for _ in range(steps):
+            sim.stepper.step(sim.x)
+    med = interleaved({k: (lambda s=sim: s.stepper.step(s.x), steps) for k, sim in sims.items()}, rounds)
+    same = bool(np.array_equal(sims["element"].x.numpy(), sims["node"].x.numpy()))
+    s = sims["element"].scene
+    return {
+        "scene": scene,
+        "grid": f"ne{s.ne} np{s.np}",
+        "stepper": s.stepper,
+        "node_ms": med["node"],
+        "element_ms": med["element"],
+        "ratio": med["element"] / med["node"],
+        "bitwise": same,
+        "steps": steps * (rounds + 1),
+    }
+
+
+def dss_by_element(argv: list[str]) -> None:
+    """``dss_by_element``: its options from ``argv``, its runs, its results file."""
+    args = dss_arguments(argv)
+    grid = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
+    with (
+        recorded(__file__, f"dss_by_element/{args.results or 'dss_by_element'}") as figures,
+        threadpool_limits(limits=1),
+    ):
+        print(f"load average at the start: {os.getloadavg()}")
+        rows = [measure_dss(scene, grid, args.steps, args.rounds) for scene in args.scene]
+        print(f"\nCPU ms a step, medians of {args.rounds} interleaved rounds of {args.steps} steps, one thread")
+        print(f"{'scene':>22} {'grid':>9} {'stepper':>8} {'node':>8} {'element':>8} {'ratio':>6} {'bitwise':>8}")
+        for r in rows:
+            print(
+                f"{r['scene']:>22} {r['grid']:>9} {r['stepper']:>8} {r['node_ms']:8.3f} {r['element_ms']:8.3f} "
+                f"{r['ratio']:6.3f} {str(r['bitwise']):>8}"
+            )
+        figures["steps"] = rows
+        print(f"load average at the end: {os.getloadavg()}")
+
+
 if __name__ == "__main__":
-    main()
+    studies(__doc__, {name: globals()[name] for name in STUDIES})

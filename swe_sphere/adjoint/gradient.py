@@ -77,7 +77,9 @@ def scene_model(scene: Scene, device: str = "cpu", hs=None, comm=None):
     its ``ShallowWater`` (``model.topology`` assembles the ranks' parts), its stepper (at the
     scene's Δt, under no step control) and its case's initial state (3, N) numpy on this rank's
     nodes; ``hs`` (nnodes_total,) m: the whole grid's surface height instead of the case's (read
-    on rank 0). ``ArgumentError`` for a scene in float32 (``Scene.precision``: gradients stay
+    on rank 0). Stepped by ``stepper.step(x)`` (x0 as a float64 Warp array on the device) it is the
+    scene's run to the bit (``Stepper.advance`` does not count the step, on which the ∇⁴ every k
+    steps and the model time depend). ``ArgumentError`` for a scene in float32 (``Scene.precision``: gradients stay
     float64), a stepper without a gradient (not ``differentiable``) or hs of another shape or not
     finite (on every rank); ``SceneError`` for a ν the ∇⁴ cannot step."""
     if scene.precision != "float64":

@@ -145,6 +145,12 @@ class Stepper(Described):
         return stats
 
     def advance(self, x: wp.array2d) -> StepStats:
+        """The step's work on x (3, N) in place, the step not counted: the hook each stepper
+        implements. Step with ``step``, which counts it: the step's index decides the ∇⁴ under
+        ``hyperviscosity.every`` k > 1 (``_dissipates``) and the stages' model time (``_at``), so
+        ``advance`` alone never reaches the k-th step (TC5 ne6, every 2: no ∇⁴ in a day, h 10 m
+        off the run's), unless the index is set before each call (``set_phase``, as the gradient's
+        sweep does)."""
         raise NotImplementedError
 
     def set_dt(self, dt: float) -> None:

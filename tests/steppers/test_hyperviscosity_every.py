@@ -55,6 +55,29 @@ def test_every_k_steps_is_k_steps_of_dynamics_then_the_hyperviscosity_over_k_dt(
     np.testing.assert_array_equal(sparse.x.numpy(), bare.x.numpy())
 
 
+def test_a_scene_s_model_and_stepper_stepped_by_hand_are_its_run():
+    """``adjoint.gradient.scene_model``'s model, stepper and start, stepped by ``step`` (which counts
+    the step), end a TC5 run with the ∇⁴ every 3 steps with the bits of the scene's run; ``advance``
+    alone (the stepper's uncounted hook) never takes the ∇⁴, and ends elsewhere."""
+    import warp as wp
+
+    from swe_sphere.adjoint.gradient import scene_model
+
+    scene = tc5(3)
+    run = Simulation(scene, "cpu", progress=False)
+    run.run(None)
+    ends = {}
+    for how in ("step", "advance"):
+        model, stepper, x0 = scene_model(scene, "cpu")
+        x = wp.array(x0, dtype=wp.float64, device="cpu")
+        for _ in range(scene.nsteps):
+            getattr(stepper, how)(x)
+        ends[how] = x.numpy()
+    assert scene.nsteps == 6 and stepper.steps == 0
+    np.testing.assert_array_equal(ends["step"], run.x.numpy())
+    assert np.abs(ends["advance"][2] - ends["step"][2]).max() > 1e-3
+
+
 def test_every_one_leaves_the_scene_dict_as_before_the_key():
     """A restart file's scene (``as_dict``) holds the key only where k > 1: one written before it
     continues."""

@@ -52,7 +52,7 @@ def run(
         Show a progress bar.
     verbose : bool
         Show Warp's banner and module loads, and with ``output={"log_every_steps": N}`` a line of
-        invariant changes and Courant numbers every N steps (``Simulation.log_line``); quiet otherwise.
+        invariant changes and Courant numbers every N steps (``simulation.activities.log_line``); quiet otherwise.
     initial : callable, optional
         ``initial(lat, lon) -> (h, u, v)`` (lat, lon in radians; h in m, u, v in m s⁻¹), the state
         at t = 0 instead of the case's; the case still gives fcor, hs and the truth the errors are

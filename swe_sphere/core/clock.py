@@ -4,7 +4,7 @@ the clock of a run replayed step by step (``StepTimes``: a gradient's, a control
 A scene's ``Clock`` holds the Δt of its step rule (``config.step_rule.scene_dt``) and is
 asked by everything that counts steps: the scene's schedule checks, the output and restart
 steps (``simulation.schedules``), the Python drive's intervals and its fitted Δt
-(``integrator.core.FixedDt.fitted``: a new clock, made the run's by ``Simulation.use_dt`` alone), the run file's
+(``integrator.core.FixedDt.fitted``: a new clock, made the run's by ``Intervals.use_dt`` alone), the run file's
 times (``day``). Δt is decided in two places: the scene's step rule, and the one loop's Δt
 policy (``integrator.core.FixedDt``, the plan's Δt, one fitted, or a run's replayed, ``StepTimes``;
 ``integrator.core.ControlledDt``, a step control's accepted steps); ``fitted`` here is the

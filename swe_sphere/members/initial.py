@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 
 from ..core.arguments import array_argument, got, integer_argument, number_argument
-from ..core.errors import ArgumentError
+from ..core.errors import ArgumentError, SceneError
 from ..grid.cubed_sphere import CubedSphere
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
@@ -192,22 +192,39 @@ class Variants:
         return "variants: " + "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vs)}" for k, vs in self.values.items())
 
 
-def asked(scene, members, start, required: bool = False) -> tuple[int | None, object]:
-    """(N, start) of a run's members: ``members``, else the scene's [ensemble] ``members``, None
-    where neither names them (a single run; ``ArgumentError`` where ``required``), and ``start``
-    (``Simulation``'s ``initial``), else the [ensemble]'s ``Perturbation`` where its amplitude is
-    above 0, a perturbation's band checked within the grid's degrees (``check_band``)."""
+def asked(scene, members, start, given=None, required: bool = False) -> tuple[int | None, object, object]:
+    """(N, start, given) of a run's members: ``members``, else the scene's [ensemble] ``members``,
+    None where neither names them (a single run; ``ArgumentError`` where ``required``), and
+    ``start`` (``Simulation``'s ``initial``), else the [ensemble]'s ``Perturbation`` where its
+    amplitude is above 0, a perturbation's band checked within the grid's degrees
+    (``check_band``); ``given`` (``Simulation``'s ``start``) checked as an array (3 + K, n) (K the
+    scene's tracers). ``SceneError`` for members with tracers, a function or a ``given`` start;
+    ``ArgumentError`` for a single run's ``start`` that is not a function, or given with ``given``."""
     table = scene.ensemble  # the scene's [ensemble] table, or None
     if members is None and table is None:
         if required:
             raise ArgumentError("members must be given, or the scene name them ([ensemble] members)")
-        return None, start
+        if start is not None and (given is not None or not callable(start)):
+            raise ArgumentError(
+                f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(start)})"
+            )
+        if given is not None and given is not ON_ROOT:
+            # the grid's columns: ``distribute``; a row for each tracer's mass after u, v, h
+            given = array_argument("start", given, (3 + len(scene.tracers), None), "m s⁻¹ and m")
+        return None, start, given
     members = integer_argument("members", table["members"] if members is None else members, 1)
     perturbed = start is None and table is not None and table["perturbation"] > 0
     start = Perturbation(table["perturbation"], table["seed"], table.get("degrees")) if perturbed else start
     if isinstance(start, Perturbation):  # its band within the grid's degrees, named as it was given
         check_band(start.degrees, scene, "ensemble.degrees" if perturbed else "initial: perturbation degrees")
-    return members, start
+    if scene.tracers:
+        raise SceneError("[tracers] in a run of members: the members' states carry u, v and h alone")
+    if callable(start) or given is not None:
+        raise SceneError(
+            "initial: an [ensemble]'s members start from its perturbation, or an array, a Perturbation, a "
+            "MemberFile or Variants (not a function, nor a start)"
+        )
+    return members, start, None
 
 
 def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -> np.ndarray:

@@ -10,7 +10,6 @@ from the one grid, not the copies."""
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 
@@ -22,12 +21,13 @@ from ..core.arguments import got
 from ..core.errors import ArgumentError, CheckpointError, StepFailure
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
-from ..integrator.core import trouble_line
+from ..integrator.core import FixedDt, Integrator, trouble_line
 from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import courant_numbers, invariants
 from ..model.shallow_water import ShallowWater
 from . import initial, units
 from .grid import MemberGrid
+from .stability import stability_limit, stability_line
 
 
 @dataclass
@@ -51,17 +51,15 @@ class WholeFields:
 
 class Members:
     """The ``members`` (N ≥ 1; None: a single run, N = 1 with a single run's files) members of
-    ``scene`` started from ``start`` (``Simulation``'s ``initial``), built on ``backend``: over the
-    ranks of ``comm`` by element for a single run (``given``: its start state (3 + K, n) on rank 0,
-    ``initial.ON_ROOT`` on the others), by member for N (rank r steps the r-th of R contiguous
-    shares, ``held``), laid out by ``layout`` and ``blow_up`` (``units.layout``,
-    ``units.POLICIES``); ``options`` the models' ``per_element`` and ``threads``. Raises as
-    ``Simulation``. Attributes as ``Simulation``'s doc lists them (``grid``: the whole grid on
-    rank 0, ``copies``, ``units``, ``alike``, ``initial_states``, …); ``unit_held`` each unit's
-    members (their indices), in order; ``out`` the units dropped ({unit index: step}, the
-    integrator's, set by the driver); ``run`` the run's ``run_state.RunState`` (set by the driver).
-    Fields are gathered on rank 0, which diagnoses the whole grid (the same arithmetic on any
-    number of ranks) and broadcasts the figures."""
+    ``scene`` started from ``start`` (``Simulation``'s ``initial``) on ``backend``: a single run over
+    the ranks of ``comm`` by element (``given``: its start (3 + K, n) on rank 0, ``initial.ON_ROOT``
+    on the others), N members by member (rank r the r-th of R contiguous shares, ``held``), laid out
+    by ``layout`` and ``blow_up`` (``units.layout``, ``units.POLICIES``); ``options`` the models'
+    ``per_element`` and ``threads``. Raises as ``Simulation``. Attributes as ``Simulation``'s doc
+    lists them (``grid`` the whole grid on rank 0, ``units``, ``copies``, ``alike``, …);
+    ``unit_held`` each unit's members; ``out`` the units dropped ({unit index: step}); ``run`` the
+    run's ``run_state.RunState`` (set by the driver). Rank 0 diagnoses the whole grid (the same
+    arithmetic on any number of ranks) and broadcasts the figures."""
 
     dfi = scorer = copies = one = cases = variants = None
     alike, initial_states = False, "the case's"
@@ -132,18 +130,26 @@ class Members:
         """N, the members."""
         return self.members or 1
 
+    def integrator(self) -> Integrator:
+        """The one step loop over the units (``integrator.core.Integrator``): members' a block watched,
+        a checked step plain (``units.member_step``), a member dropped where it blows up (``blow_up``)."""
+        more = {"anywhere": self.anywhere, "drop": self.blow_up == "drop", "lone": False} if self.members else {}
+        core = Integrator(self.units, FixedDt(units.member_step) if more else None, **more)
+        core.out = self.out  # the units dropped
+        return core
+
     # -- over the ranks ----------------------------------------------------------------------
     def each(self, read, whole: bool = False) -> np.ndarray | None:
         """(held, ..., n): ``read(unit)`` (..., its members·n) of every unit cut into this rank's members'
         columns, a member a row; ``whole``: on the whole grid (a single run's gathered on rank 0, None
-        on its other ranks; ``Topology.gather``)."""
+        on its other ranks; ``Topology.gather``). One member's is a view of ``read``'s array."""
         parts = []
         for u in self.units:
             a = u.model.topology.gather(read(u)) if whole else read(u)
             if a is None:
                 return None
             parts += np.split(a, u.members, axis=-1)
-        return np.stack(parts)
+        return parts[0][None] if len(parts) == 1 else np.stack(parts)
 
     def on_root(self, local) -> list | None:
         """Every rank's ``local`` (an entry a held member or unit) in member order on rank 0, None on the
@@ -162,15 +168,12 @@ class Members:
         """Rank 0's ``value`` on every rank (collective)."""
         return self.topology.bcast(value) if self.comm is None else self.comm.bcast(value, root=0)
 
-    def everyone(self, local) -> list:
-        """Every rank's ``local`` (an entry a held member) in member order, on every rank (collective)."""
+    def everyone(self, local, shown: bool = False) -> list:
+        """Every rank's ``local`` (an entry a held member) in member order, on every rank (collective);
+        ``shown``: figures (dicts), a dropped member's NaN."""
+        if shown and local is not None:
+            local = [dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(local)]
         return self.bcast(self.on_root(local))
-
-    def everyone_shown(self, each: list | None) -> list:
-        """``everyone`` of the held members' figures ``each`` (dicts), a dropped member's NaN (collective)."""
-        return self.everyone(
-            None if each is None else [dict.fromkeys(d, np.nan) if i in self.out else d for i, d in enumerate(each)]
-        )
 
     def anywhere(self, flag: bool) -> bool:
         """Whether ``flag`` holds on any rank (collective)."""
@@ -230,8 +233,8 @@ class Members:
         each = self.shown(held)
         if each is None:
             return WholeFields(*([None] * 4), held=held)
-        a, n = np.stack(each).swapaxes(0, 1), 5 if divergence else 4  # rows u, v, h, vorticity (, divergence), masses
-        a = a if self.members else a[:, 0]
+        # rows u, v, h, vorticity (, divergence), masses; a single run's the gathered array's views (no copy)
+        a, n = each[0] if self.members is None else np.stack(each).swapaxes(0, 1), 5 if divergence else 4
         return WholeFields(*a[:n], masses=a[n:] if self.units[0].model.tracers else None, held=held)
 
     # -- diagnostics ---------------------------------------------------------------------
@@ -244,9 +247,9 @@ class Members:
         whole = self.gather_fields(x) if whole is None else whole
         if self.members is None:
             errors = self.scorer[0].errors(t, (self.run.x if x is None else x).numpy(), whole.u, whole.v, whole.h)
-            return self.bcast(self._figures(whole, errors) if self.root else None)
+            return self.bcast(self.figures(whole, errors) if self.root else None)
         each = [{**d, **e} for e, d in zip(self.errors_of(t, whole.held, whole.held), self.invariants_of(whole.held))]
-        each = self.everyone_shown(each)
+        each = self.everyone(each, shown=True)
         return {key: np.array([d[key] for d in each]) for key in each[0]}
 
     def errors_of(self, t: float, local, held) -> list[dict[str, float]]:
@@ -275,7 +278,7 @@ class Members:
         """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)
         (``model.diagnostics.invariants`` on the one grid: the bits of the single run's; a dropped
         member's NaN, as in ``states()``; collective)."""
-        return self.everyone_shown(self.invariants_of(self.gather_fields().held))
+        return self.everyone(self.invariants_of(self.gather_fields().held), shown=True)
 
     def errors(self) -> list[dict[str, float]]:
         """Each member's errors now against the case's truth, as the run files have them
@@ -283,7 +286,7 @@ class Members:
         the wind against an exact solution, or against the scene's spectral reference where
         it stores this day); {} a member for a case with neither (a dropped member's NaN; collective)."""
         local, held = self.each(lambda u: u.x.numpy()), self.each(lambda u: u.x.numpy(), whole=True)
-        return self.everyone_shown(self.errors_of(self.run.seconds(self.run.step), local, held))
+        return self.everyone(self.errors_of(self.run.seconds(self.run.step), local, held), shown=True)
 
     def h_spread_rms(self) -> float:
         """The members' spread of h now (m): the area-weighted RMS over the sphere of their
@@ -302,46 +305,14 @@ class Members:
     def largest_dt_within_limit(self) -> list[float | None]:
         """Each member's Δt (s) at which its Courant number now reaches the stepper's measured
         stability limit (``stability_warning``'s); None for a stepper without one (collective)."""
-        limits = [self._stability_limit(c) for c in self.courant()]
+        limits = [stability_limit(self.run.stepper, c) for c in self.courant()]
         return [None if limit is None else self._dt() * limit[0] / limit[2] for limit in limits]
 
     def stability_warning(self) -> list[str | None]:
         """Each member's one-line warning where Δt exceeds the stepper's measured stability limit
         on its state now (``largest_dt_within_limit``), else None (collective)."""
-        return [self._warning(self._stability_limit(c)) for c in self.courant()]
-
-    def _stability_limit(self, c: dict) -> tuple[float, str, float, str] | None:
-        """(limit, what it limits, its value at the scene's dt for the Courant numbers ``c``, its
-        source) of the stepper's stability limit, measured or a table's from its stability polynomial
-        (``Stepper.courant_limit`` on (|v| + √(gh)) Δt/Δx for explicit steppers,
-        ``advective_courant_limit`` on |v| Δt/Δx for IMEX and multirate), or None without one."""
-        kind = self.run.stepper  # the instance: a table's limit is its own (``TableauRK``)
-        if kind.courant_limit is not None:
-            speed = c["courant_advective"] + (0.0 if math.isnan(c["courant_gravity"]) else c["courant_gravity"])
-            return kind.courant_limit, "a Courant number (|v| + sqrt(g h)) dt/dx", speed, kind.courant_limit_source
-        if kind.advective_courant_limit is not None:
-            source = "its explicit advection's, measured on TC5, TC6 and Galewsky"
-            return kind.advective_courant_limit, "an advective Courant number |v| dt/dx", c["courant_advective"], source
-        return None
-
-    def _warning(self, limit: tuple | None) -> str | None:
-        """The stability warning of a member's ``_stability_limit``, None where it is kept."""
-        if limit is None or limit[2] <= limit[0]:
-            return None
-        limit, what, speed, source = limit
-        stepper = self.run.stepper.label(self.run.scene.stepper_options)  # a table by its name
-        if limit == 0:
-            return (
-                f"warning: {stepper} is stable on no stretch of the imaginary axis (its stability polynomial "
-                "has |R(iy)| > 1 for every y > 0): waves grow at every dt, held back only by hyperviscosity; it "
-                "may blow up (three-stage third-order tables are stable to y = 1.73)"
-            )
-        dt = self._dt()
-        return (
-            f"warning: dt = {dt:g} s gives {what} of {speed:.3g}, above "
-            f"{stepper}'s stability limit of about {limit:.3g} ({source}); it may blow up "
-            f"(dt <= {dt * limit / speed:.4g} s keeps below)"
-        )
+        stepper, options = self.run.stepper, self.run.scene.stepper_options
+        return [stability_line(stepper, options, stability_limit(stepper, c), self._dt()) for c in self.courant()]
 
     def _dt(self) -> float:
         """The run's dt (s): the scene's, or under step control the controller's current one (the
@@ -353,7 +324,7 @@ class Members:
         pressure = "pressure_gradient" in self.run.scene.terms  # gravity waves only with the pressure gradient term
         return courant_numbers(self.grid, u, v, h, self._dt(), g, pressure)
 
-    def _figures(self, whole: WholeFields, errors=()) -> dict:
+    def figures(self, whole: WholeFields, errors=()) -> dict:
         """A single run's invariants of ``whole`` and their change relative to ``initial``, ``errors``
         and the Courant numbers (rank 0)."""
         u, v, h, hs, fcor, g = whole.u, whole.v, whole.h, self.hs[0], self.fcor[0], self.g[0]
@@ -366,21 +337,6 @@ class Members:
         d |= {f"{k}_change": (d[k] - start[k]) / abs(start[k]) for k in d}
         d.update(errors, **self.courant_at(u, v, h, g))
         return d
-
-    def log_line(self, d: dict | None = None) -> str | None:
-        """A single run's line on the current step, as HOMME prints every ``statefreq`` steps: step,
-        model day, relative changes of mass, total energy and potential enstrophy since t = 0 and
-        the largest advective and gravity-wave Courant numbers over the nodes. ``d``: the step's
-        ``diagnose`` when the caller has it; else the fields are gathered here (the one device
-        synchronisation). Call on every rank; None on the ranks > 0."""
-        whole = self.gather_fields() if d is None else None  # on every rank
-        if not self.root:
-            return None
-        d = self._figures(whole) if d is None else d
-        names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
-        changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
-        grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
-        return f"step {self.run.step} day {self.run.time:.4f}{changes}  Courant advective {d['courant_advective']:.3f}{grav}"
 
     # -- blow-ups and dropped members -----------------------------------------------------
     def describe(self, bad: tuple) -> str:

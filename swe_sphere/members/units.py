@@ -27,6 +27,7 @@ from ..core.errors import ArgumentError, ResourceError
 from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
+from ..integrator.control import StepControl
 from ..integrator.core import Unit
 from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
@@ -123,6 +124,20 @@ def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: s
         model.launches.guard.warn = lambda line: None
     unit = Unit.of(model, stepper, start[None], backend, graphs)
     return unit, dfi, (case, topo, grid, whole_hs, whole_fcor, scorer)
+
+
+def step_control(scene: Scene, unit: Unit, members: int | None, layout: str, comm) -> StepControl | None:
+    """The step control of ``scene`` (``integrator.control.StepControl`` of ``unit``, the first; None
+    without): ``members`` (None: a single run) with one Δt for every member, in the same launches,
+    on one rank (else ``ArgumentError``: laid out ``layout``, over the ranks of ``comm``)."""
+    if scene.control is not None and members and (layout != "shared" or comm is not None):
+        where = "over MPI ranks" if comm is not None else "each on a model of its own"
+        raise ArgumentError(
+            f"scene: its dt is controlled (time.control = {scene.control.mode!r}), which an ensemble takes "
+            "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
+            f"blow_up 'stop'), not {where}"
+        )
+    return None if scene.control is None else StepControl(scene.control, unit, scene.start_day)
 
 
 def shared_unit(scene, case, own, grid: CubedSphere, starts, backend, threads: int, options: dict, graphs: str):

@@ -17,6 +17,7 @@ activity always sees the state of its own step.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -44,14 +45,30 @@ class Callback:
 
 
 def log_activity(log: Callable, schedule: EverySteps, files: RunFiles) -> Callback:
-    """``log(line)`` with ``Members.log_line`` every ``schedule`` steps (a ``Callback``;
-    rank 0, the fields gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its
-    run state and diagnostics) recorded at this step when it did; the owner it is called with not
-    read."""
+    """``log(line)`` with ``log_line`` every ``schedule`` steps (a ``Callback``; rank 0, the fields
+    gathered on every rank), from the diagnostics ``files`` (a ``RunFiles``: its run state and
+    diagnostics) recorded at this step when it did; the owner it is called with not read."""
 
     def call(owner) -> None:
-        line = files.diagnostics.log_line(files.history[-1] if is_due(files.schedule, files.run) else None)
+        line = log_line(files.diagnostics, files.history[-1] if is_due(files.schedule, files.run) else None)
         if line is not None:
             log(line)
 
     return Callback(call, schedule)
+
+
+def log_line(members, d: dict | None = None) -> str | None:
+    """A single run's line on its current step (``members`` its ``members.members.Members``), as
+    HOMME prints every ``statefreq`` steps: step, model day, relative changes of mass, total energy
+    and potential enstrophy since t = 0 and the largest advective and gravity-wave Courant numbers
+    over the nodes. ``d``: the step's ``diagnose`` when the caller has it; else the fields are
+    gathered here (the one device synchronisation). Call on every rank; None on the ranks > 0."""
+    whole = members.gather_fields() if d is None else None  # on every rank
+    if not members.root:
+        return None
+    d = members.figures(whole) if d is None else d
+    names = {"mass_change": "mass", "total_energy_change": "energy", "potential_enstrophy_change": "enstrophy"}
+    changes = "".join(f"  {name} {d[k]:+.3e}" for k, name in names.items() if k in d)
+    grav = "" if math.isnan(d["courant_gravity"]) else f" gravity-wave {d['courant_gravity']:.3f}"
+    run = members.run
+    return f"step {run.step} day {run.time:.4f}{changes}  Courant advective {d['courant_advective']:.3f}{grav}"

@@ -19,7 +19,6 @@ from threadpoolctl import threadpool_limits
 
 from ..config.scene import Scene, resolve_scene, with_days
 from ..core.arguments import (
-    array_argument,
     callable_argument,
     comm_argument,
     flag_argument,
@@ -32,12 +31,11 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
-from ..integrator.control import StepControl
-from ..integrator.core import FixedDt, Integrator, Stop, forwarded
+from ..integrator.core import Stop, forwarded
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
-from ..members.initial import ON_ROOT, asked
+from ..members.initial import asked
 from ..members.members import Members
-from ..members.units import member_step
+from ..members.units import step_control
 from . import checkpoint as ckpt
 from .activities import add_callback, log_activity
 from .checkpoint import restore_run, write_restart
@@ -54,7 +52,9 @@ __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
 
 
 # the old names of a simulation's parts, each a one-line ``DeprecationWarning`` where read
+# (the intervals' names: their owner's, ``intervals``)
 RENAMED = {"ensemble": "members", "diagnostics": "members"}
+RENAMED |= {name: f"intervals.{name}" for name in ("fitted_dt", "use_dt", "fit_dt")}
 
 
 def squeeze(n: int, each):
@@ -186,8 +186,9 @@ class Simulation:
         ``initial_states``, …; ``members.members`` N, None for a single run, whose files are a single
         run's). ``ensemble`` and ``diagnostics`` are its deprecated names.
     intervals : Intervals
-        The run's intervals in whole steps and Δt fitted to them (``intervals``); ``every``,
-        ``fitted_dt``, ``use_dt`` and ``fit_dt`` are also the simulation's.
+        The run's intervals in whole steps and Δt fitted to them (``intervals``): ``every`` (also
+        the simulation's), ``fitted_dt``, ``use_dt``, ``fit_dt`` (the simulation's names of these
+        deprecated).
     backend : Backend
         The device's choices (``core.backend``), decided once; ``device`` its name.
 
@@ -255,22 +256,8 @@ class Simulation:
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
-        members, initial = asked(scene, members, initial, self._of_members)  # N, or None: a single run
-        many = members is not None
-        if many and scene.tracers:
-            raise SceneError("[tracers] in a run of members: the members' states carry u, v and h alone")
-        if many and (callable(initial) or start is not None):
-            raise SceneError(
-                "initial: an [ensemble]'s members start from its perturbation, or an array, a Perturbation, a "
-                "MemberFile or Variants (not a function, nor a start)"
-            )
-        if initial is not None and not many and (start is not None or not callable(initial)):
-            raise ArgumentError(
-                f"initial must be a function (lat, lon) -> (h, u, v), and not given with start (got {got(initial)})"
-            )
-        if start is not None and start is not ON_ROOT:
-            # the grid's columns: ``distribute``; a row for each tracer's mass after u, v, h
-            start = array_argument("start", start, (3 + len(scene.tracers), None), "m s⁻¹ and m")
+        # N (None: a single run) and how the members start, checked
+        members, initial, start = asked(scene, members, initial, start, self._of_members)
         if initial_diagnostics is not None:
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
@@ -286,32 +273,17 @@ class Simulation:
             self.model, self.progress = m.units[0].model, self.progress and m.root
             self.hs, self.fcor, self.g = (None, None, self.model.g) if m.hs is None else (m.hs[0], m.fcor[0], m.g[0])
             self.scorer = m.scorer and m.scorer[0]  # a single run's (members': built when first asked)
-            # the one step loop over the units: members' a block watched, a checked step plain (``member_step``)
-            more = {} if m.members is None else {"anywhere": m.anywhere, "drop": blow_up == "drop", "lone": False}
-            self.core = Integrator(m.units, FixedDt(member_step) if more else None, **more)
-            self.core.out = m.out  # the units dropped
+            self.core = m.integrator()
             m.run = self.run_state = RunState(self.core, scene, initial=initial_diagnostics)
             if initial_diagnostics is None:  # before the step control: their Courant numbers at the scene's dt
                 self.run_state.initial = m.diagnose(scene.start_day * DAY)
-            if scene.control is not None:  # Δt chosen step to step: the loop's steps land on its times
-                self._control(scene, m)
+            # Δt chosen step to step (``Scene.control``): the loop's steps land on its times
+            self.core.control = step_control(scene, m.units[0], m.members, m.layout, m.comm)
             self.counters["iterations"].update(dict.fromkeys(self.core.units[0].stepper.solvers, 0))
         self.intervals = Intervals(self.run_state, self.activities, self.members, own_dt)
         self.setup_time = time.perf_counter() - t0
         if inputs:
             self.inputs = inputs
-
-    def _control(self, scene, m: Members) -> None:
-        """The integrator's step control (``integrator.control.StepControl``): one Δt for every member,
-        in the same launches, on one rank (else ``ArgumentError``)."""
-        if m.members and (m.layout != "shared" or m.comm is not None):
-            where = "over MPI ranks" if m.comm is not None else "each on a model of its own"
-            raise ArgumentError(
-                f"scene: its dt is controlled (time.control = {scene.control.mode!r}), which an ensemble takes "
-                "with its members in the same launches, one rank (an explicit pair, the members' g and ν alike, "
-                f"blow_up 'stop'), not {where}"
-            )
-        self.core.control = StepControl(scene.control, m.units[0], scene.start_day)
 
     # -- restarts and branches (``checkpoint``)
     from_checkpoint = classmethod(ckpt.from_checkpoint)
@@ -391,7 +363,7 @@ class Simulation:
         if name not in RENAMED:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         warnings.warn(f"Simulation.{name} is deprecated: Simulation.{RENAMED[name]}", DeprecationWarning, stacklevel=2)
-        return getattr(self, RENAMED[name])
+        return attrgetter(RENAMED[name])(self)
 
     def run(
         self,
@@ -502,10 +474,7 @@ class Simulation:
         return outcome(stop, self.run_state, output, ckp, result)
 
     # -- driven from Python (Oceananigans' ``Simulation``: step, inspect, call back); intervals of whole
-    # steps, Δt fitted to them where it is the simulation's own (``intervals.Intervals``)
-    fitted_dt = _delegated(Intervals.fitted_dt, attrgetter("intervals"))
-    use_dt = _delegated(Intervals.use_dt, attrgetter("intervals"))
-    fit_dt = _delegated(Intervals.fit_dt, attrgetter("intervals"))
+    # steps, Δt fitted to them where it is the simulation's own (``intervals``: ``every``, ``fit_dt``, …)
     every = _delegated(Intervals.every, attrgetter("intervals"))
 
     def add_callback(

@@ -52,9 +52,9 @@ def _calls(sim, tmp_path) -> dict:
     call("stepper", lambda: type(sim.stepper).__name__)
     call("state", lambda: sim.state())
     call("every", lambda: sim.every(days=0.25).steps)
-    call("fitted_dt", lambda: sim.fitted_dt(0.25)[0].dt)
-    call("use_dt", lambda: sim.use_dt(*sim.fitted_dt(0.25)))
-    call("fit_dt", lambda: sim.fit_dt(0.25)[0].dt)
+    call("fitted_dt", lambda: sim.intervals.fitted_dt(0.25)[0].dt)
+    call("use_dt", lambda: sim.intervals.use_dt(*sim.intervals.fitted_dt(0.25)))
+    call("fit_dt", lambda: sim.intervals.fit_dt(0.25)[0].dt)
     start = sim.states()
     seen = []
     call("add_callback", lambda: sim.add_callback(lambda s: seen.append(s.step), every_steps=1))
@@ -177,3 +177,13 @@ def test_members_and_an_ensemble_table_as_load_scene_takes_them():
         Simulation("galewsky", members=3, ensemble={"members": 2}, **SMALL)
     with pytest.warns(DeprecationWarning, match=r"^Simulation.ensemble is deprecated: Simulation.members$"):
         assert sim.ensemble is sim.members
+
+
+def test_the_intervals_old_names_are_their_owners_after_a_warning():
+    # issue 124: forwarders give way to their owner, ``sim.intervals``; the old names warn in one line
+    sim = Simulation("tc2_steady", "cpu", ne=2, days=1.0, progress=False)
+    with pytest.warns(
+        DeprecationWarning, match=r"^Simulation.fitted_dt is deprecated: Simulation.intervals.fitted_dt$"
+    ):
+        scene, _ = sim.fitted_dt(0.125)
+    assert scene.dt == sim.intervals.fitted_dt(0.125)[0].dt == 2160.0 and sim.scene.dt != 2160.0

@@ -122,14 +122,14 @@ def test_fitted_dt_writes_nothing_and_fit_dt_uses_its_pair():
     kw = dict(ne=2, days=0.25, stepper="leapfrog", progress=False)
     sim = Simulation("tc2_steady_alpha_pi4", "cpu", **kw)
     scene, stepper = sim.scene, sim.stepper
-    fitted, new = sim.fitted_dt(0.125)
+    fitted, new = sim.intervals.fitted_dt(0.125)
     assert (fitted.dt, new.dt, new is stepper) == (2160.0, 2160.0, False)
     assert sim.scene is scene and sim.stepper is stepper and stepper.dt == scene.dt == 2400.0
-    assert sim.fit_dt(0.125) == (sim.scene, sim.stepper) and sim.scene.dt == sim.stepper.dt == 2160.0
+    assert sim.intervals.fit_dt(0.125) == (sim.scene, sim.stepper) and sim.scene.dt == sim.stepper.dt == 2160.0
     own = Simulation("galewsky", "cpu", ne=3, np=5, days=1, progress=False)
-    fitted, same = own.fitted_dt(0.5)
+    fitted, same = own.intervals.fitted_dt(0.5)
     assert same is own.stepper and same.dt == own.scene.dt == 86400 / 51 and fitted.dt == 43200 / 26
-    own.use_dt(fitted, same)
+    own.intervals.use_dt(fitted, same)
     assert own.scene is fitted and same.dt == 43200 / 26
 
 

@@ -4,6 +4,7 @@ load hits both alike), and flags a ratio beyond ``--factor`` that its statistics
 table, with the date, machine, load and commits, becomes ``results/compare/<stem>.json``::
 
     python benchmarks/compare.py d6c19d2 HEAD [--factor 1.1] [--bench REGEX] [--rounds N] [--results STEM]
+        [--settings FLAGS ...]   # the whole run also with these swe-sphere run flags (whole_run.py)
 
 The exit status is asv's: 0 when nothing got slower beyond the factor, 1 when something did (the
 record is written either way: a slower figure is a figure)."""
@@ -11,6 +12,8 @@ record is written either way: a slower figure is a figure)."""
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -40,6 +43,13 @@ def main() -> int:
     parser.add_argument("--bench", help="only the benchmarks matching this regular expression")
     parser.add_argument("--rounds", type=positive(int), help="asv's rounds a benchmark (default its 2), taken in turn")
     parser.add_argument("--results", help="results/compare/<STEM>.json (default: compare)")
+    parser.add_argument(
+        "--settings",
+        nargs="+",
+        default=[],
+        metavar="FLAGS",
+        help="swe-sphere run flags the whole run is also timed with, each beside the scene's own (regressions/whole_run.py)",
+    )
     args = parser.parse_args()
     for rev in (args.base, args.head):
         git = ["git", "rev-parse", "--verify", "-q", f"{rev}^{{commit}}"]  # in the suite's repository, as asv
@@ -49,9 +59,10 @@ def main() -> int:
     command += ["--no-only-changed", *(["--bench", args.bench] if args.bench else [])]
     command += ["--attribute", f"rounds={args.rounds}"] if args.rounds else []
     with recorded(__file__, args.results) as figures:
-        figures.update(base=args.base, head=args.head, factor=args.factor, rounds=args.rounds)
+        figures.update(base=args.base, head=args.head, factor=args.factor, rounds=args.rounds, settings=args.settings)
         print(" ".join([*command, args.base, args.head]))
-        done = subprocess.run([*command, args.base, args.head], capture_output=True, text=True)
+        env = {**os.environ, "SWE_SPHERE_ASV_SETTINGS": json.dumps(args.settings)}  # asv passes it on
+        done = subprocess.run([*command, args.base, args.head], capture_output=True, text=True, env=env)
         print(table(done.stdout))
         figures["exit"] = done.returncode
         if done.returncode not in (0, 1):  # asv's own failure (a build, a benchmark): no comparison

@@ -73,6 +73,13 @@ the factor that asv's statistics call real flagged, and the table kept as a resu
 
     python benchmarks/compare.py d6c19d2 HEAD --factor 1.1
     SWE_SPHERE_ASV_QUICK=1 asv run --config benchmarks/asv.conf.json --python=same --quick   # CI's form
+
+A setting against the scene's own at one commit (what `default_path.sh`'s `BASE_ARGS` did in one
+tree) is the whole run's parameter `setting`: `swe-sphere run` flags in `SWE_SPHERE_ASV_SETTINGS`
+(a JSON list), each timed beside the default, in turn (`regressions/whole_run.py`):
+
+    SWE_SPHERE_ASV_SETTINGS='["--stepper rk4"]' asv run --config benchmarks/asv.conf.json --python=same --bench DefaultPath
+    python benchmarks/compare.py BASE HEAD --bench DefaultPath --settings '--stepper rk4'   # both, at both commits
 """
 
 

@@ -20,7 +20,7 @@ from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
 from ..core.interrupts import ABANDON_AFTER
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
-from .writers import Checkpointer, RunFiles
+from .writers import Checkpointer, RunFiles, opening
 
 
 @contextlib.contextmanager
@@ -212,3 +212,22 @@ def own_activities(activities: dict, files: RunFiles, ckp: Checkpointer, deferre
         activities.update(own)
         for stepper in steppers:
             stepper.deferred = False
+
+
+def open_files(sim, output, overwrite, restart_every, restart_file, compress, history, on_output, notify, compiling):
+    """The run files and checkpointer of a run of ``sim`` (a ``Simulation``; ``run``'s arguments; paths
+    checked, the files created on rank 0), the start's gathered fields, its Courant numbers (a
+    single run's) and its members' diagnostics (None for a single run); the seconds compiling
+    the diagnostic kernels added to ``compiling[0]``. ValueError for a user's activity under a
+    name the run gives its own."""
+    d, paths = sim.members, (output, restart_every, restart_file, overwrite)
+    ckp = Checkpointer(sim.run_state, sim.write_checkpoint, d.bcast, sim.root, *paths)
+    files = RunFiles(sim.run_state, d, sim.grid, sim.hs, output, on_output, d.series)
+    check_run_files(sim.activities, sim.root, sim.inputs, files, ckp, overwrite)
+    with compile_timer(compiling):  # a continuation's first use of the diagnostic kernels
+        start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank
+    name = f"swe_sphere.{type(sim).__name__}.run"
+    courant, first, attrs, more = opening(d, files, start, history, name, sim.dfi, sim.device)
+    if output is not None and sim.root:
+        files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
+    return files, ckp, start, courant, first

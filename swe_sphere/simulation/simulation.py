@@ -8,7 +8,6 @@ give under one squeeze rule (``squeeze``; issue 124: one run of any size)."""
 
 from __future__ import annotations
 
-import functools
 import time
 import warnings
 from operator import attrgetter
@@ -41,11 +40,11 @@ from .activities import add_callback, log_activity
 from .checkpoint import restore_run, write_restart
 from .guard import RunObserver
 from .intervals import Intervals
-from .loop import check_run_arguments, check_run_files, compile_timer, integrate, outcome, own_activities, run_steps
+from .loop import check_run_arguments, compile_timer, integrate, open_files, outcome, own_activities, run_steps
+from .names import delegated, of_one, squeeze, squeezed
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
 from .summary import Ledger, RunResult
-from .writers import Checkpointer, RunFiles, opening
 
 # The names users catch and read from here (``swe_sphere.BlowUp``, ``swe_sphere.Interrupted``).
 __all__ = ["BlowUp", "Interrupted", "RunResult", "Simulation"]
@@ -57,62 +56,20 @@ RENAMED = {"ensemble": "members", "diagnostics": "members"}
 RENAMED |= {name: f"intervals.{name}" for name in ("fitted_dt", "use_dt", "fit_dt")}
 
 
-def squeeze(n: int, each):
-    """The one squeeze rule of a simulation's answers of its ``n`` members, given with the member
-    axis first (a list of N dicts or values, an (N, ...) array, or a tuple of them, None off rank
-    0): N = 1 the one member's (a dict, a value, an (n,) array: a single run's shapes), N > 1 as
-    given."""
-    if n > 1 or each is None:
-        return each
-    return tuple(squeeze(n, a) for a in each) if isinstance(each, tuple) else each[0]
-
-
-def _delegated(method, owner):
-    """A simulation's method that is its ``owner(sim)``'s method of ``method``'s name (its
-    intervals'), whose doc it has."""
-    return functools.wraps(method)(lambda sim, *args, **kw: getattr(owner(sim), method.__name__)(*args, **kw))
-
-
-def _squeezed(method):
-    """A simulation's method that is its members' (``Members``) method of ``method``'s name, its
-    answer squeezed (``squeeze``), whose doc it has."""
-    name = method.__name__
-    return functools.wraps(method)(
-        lambda sim, *a, **kw: squeeze(len(sim.members), getattr(sim.members, name)(*a, **kw))
-    )
-
-
-def _of_one(name: str, attr: str, doc: str) -> property:
-    """A simulation's ``name``: its one member's unit's ``attr`` (``integrator.core.Unit``); for N > 1
-    an ``ArgumentError`` naming ``states()``, which holds every member's."""
-
-    def get(sim):
-        if len(sim.members) > 1:
-            raise ArgumentError(
-                f"Simulation.{name}: a run of {len(sim.members)} members has a state a member; states() gives them "
-                "(N, 3, n) and set_states(states) sets them"
-            )
-        return getattr(sim.core.units[0], attr)
-
-    return property(get, doc=doc)
-
-
 class Simulation:
     """Build the grid, case, model and stepper of a scene, of one member or N; ``run`` integrates it.
 
-    A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4,
-    days=2)``. Python drives it step by step with ``advance``, ``steps``, ``state`` and
-    ``add_callback``; ``run`` integrates to the scene's end; ``from_checkpoint``
-    continues a restart file instead of starting at t = 0. With ``members`` (or a scene's
-    [ensemble]) it steps N members of the scene, member k with the bits of the single run from
-    its initial state: in the same launches on N copies of the grid, or each on a
-    model of its own (``layout``), its diagnostics and run files on (N, n) fields
-    (``members.Members``). Every name means the same for every N: ``fields``, ``divergence``,
-    ``courant``, ``stability_warning``, ``largest_dt_within_limit``, ``invariants``, ``errors`` and
-    ``state`` answer with a single run's shapes and dicts for N = 1 and with the member axis first
-    for N > 1 (``squeeze``); ``states`` and ``set_states`` take (N, 3, n) for every N; ``x``,
-    ``last_good`` and ``try_step`` (one member's state and step) raise ``ArgumentError`` naming
-    ``states()`` for N > 1, and ``stepper`` for members each on a stepper of their own.
+    A scene may be given as ``swe_sphere.run`` takes it, ``Simulation("tc2_steady", ne=4, days=2)``. Python drives
+    it step by step with ``advance``, ``steps``, ``state`` and ``add_callback``; ``run`` integrates to the scene's
+    end; ``from_checkpoint`` continues a restart file instead of starting at t = 0. With ``members`` (or a scene's
+    [ensemble]) it steps N members of the scene, member k with the bits of the single run from its initial state: in
+    the same launches on N copies of the grid, or each on a model of its own (``layout``), its diagnostics and run
+    files on (N, n) fields (``members.Members``). Every name means the same for every N: ``fields``, ``divergence``,
+    ``courant``, ``stability_warning``, ``largest_dt_within_limit``, ``invariants``, ``errors`` and ``state`` answer
+    with a single run's shapes and dicts for N = 1 and with the member axis first for N > 1 (``squeeze``);
+    ``states`` and ``set_states`` take (N, 3, n) for every N; ``x``, ``last_good`` and ``try_step`` (one member's
+    state and step) raise ``ArgumentError`` naming ``states()`` for N > 1, and ``stepper`` for members each on a
+    stepper of their own.
 
     Parameters
     ----------
@@ -128,24 +85,19 @@ class Simulation:
     progress : bool
         A tqdm bar (rank 0, stderr a terminal).
     comm : mpi4py communicator, optional
-        Run one simulation over its ranks: each steps its part of the elements
-        (``topology.Topology``), rank 0 writes the files; explicit steppers give the
-        same bits on any number of ranks. Members: rank r steps the r-th of R contiguous
-        shares of them (at least one a rank), the states gathered on every rank. None: this
-        process alone.
+        Run one simulation over its ranks: each steps its part of the elements (``topology.Topology``), rank 0 writes
+        the files; explicit steppers give the same bits on any number of ranks. Members: rank r steps the r-th of R
+        contiguous shares of them (at least one a rank), the states gathered on every rank. None: this process alone.
     start : ndarray, shape (3, nnodes), optional
-        A whole-grid state (u, v in m s⁻¹, h in m) to start from instead of the case's
-        initial state and the scene's initialization (a restart's, or a digital-filter
-        start made once for many runs, as a sweep's).
+        A whole-grid state (u, v in m s⁻¹, h in m) to start from instead of the case's initial state and the scene's
+        initialization (a restart's, or a digital-filter start made once for many runs, as a sweep's).
     initial : callable, or with members None, array (N, 3, n), Perturbation, MemberFile or Variants
-        ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out), the state at
-        t = 0 instead of the case's, which still gives fcor, hs and the truth errors
-        are taken against (``initial_state.from_function``); the scene's digital
-        filter, if any, then runs on it. Not with ``start``. Members: None, the case's for
-        every member (or the scene's [ensemble] ``perturbation`` and ``seed``); an array of
-        rows u, v (m s⁻¹), h (m) on the grid's n element-local nodes; a ``Perturbation`` of the
-        case's; a ``MemberFile`` (an ensemble's run file); ``Variants`` (each member's own case,
-        Ω, g or ν; ``members.initial``).
+        ``initial(lat, lon) -> (h, u, v)`` (radians in; m, m s⁻¹ out), the state at t = 0 instead of the case's, which
+        still gives fcor, hs and the truth errors are taken against (``initial_state.from_function``); the scene's
+        digital filter, if any, then runs on it. Not with ``start``. Members: None, the case's for every member (or
+        the scene's [ensemble] ``perturbation`` and ``seed``); an array of rows u, v (m s⁻¹), h (m) on the grid's n
+        element-local nodes; a ``Perturbation`` of the case's; a ``MemberFile`` (an ensemble's run file); ``Variants``
+        (each member's own case, Ω, g or ν; ``members.initial``).
     initial_diagnostics : dict, optional
         The t = 0 diagnostics that relative changes are taken against, the same on
         every rank (a checkpoint's, when continuing); None: the start state's.
@@ -168,8 +120,8 @@ class Simulation:
     ----------
     check_every : int
         ``run`` reads the device's bad-state check back once a block of so many steps
-        (``core.backend.CHECK_EVERY_STEPS``, 64), a failed block re-run one
-        checked step at a time (``integrator.core.Integrator``; the same bits either way).
+        (``core.backend.CHECK_EVERY_STEPS``, 64), a failed block re-run one checked step at a time
+        (``integrator.core.Integrator``; the same bits either way).
     dfi : FilterResult or None
         The digital-filter initialization's result, when the scene has one
         (``initialization``) and no ``start`` was given; its cost is in ``setup_time``.
@@ -211,17 +163,15 @@ class Simulation:
 
     Notes
     -----
-    With ``graphs`` "on", and "auto" on CUDA, ``run`` replays each step of a
-    ``capturable`` stepper (the explicit ones; semi-implicit and IMEX after their first
-    step, their Helmholtz CG's loops conditional nodes inside, on CUDA where Warp has
-    them) as a graph captured of an earlier step with the same ``GraphCapture.graph_key``
-    (on CUDA one host call a step instead of one a launch; the same bits as launched
-    one by one), its first replay checked against the step launched plainly
-    (``graphs.GraphedSteps``); a model with a time-dependent forcing runs plain. On a
-    CPU it takes one thread a launch (SWE_SPHERE_THREADS=1) and one process; otherwise
-    the steps run plain. "off": plain launches throughout (the solvers' own graphs
-    too). A capture, replay or check that fails prints one line on stderr naming the
-    feature, and the run goes on with plain launches from the plain step's state.
+    With ``graphs`` "on", and "auto" on CUDA, ``run`` replays each step of a ``capturable`` stepper (the explicit
+    ones; semi-implicit and IMEX after their first step, their Helmholtz CG's loops conditional nodes inside, on
+    CUDA where Warp has them) as a graph captured of an earlier step with the same ``GraphCapture.graph_key`` (on
+    CUDA one host call a step instead of one a launch; the same bits as launched one by one), its first replay
+    checked against the step launched plainly (``graphs.GraphedSteps``); a model with a time-dependent forcing runs
+    plain. On a CPU it takes one thread a launch (SWE_SPHERE_THREADS=1) and one process; otherwise the steps run
+    plain. "off": plain launches throughout (the solvers' own graphs too). A capture, replay or check that fails
+    prints one line on stderr naming the feature, and the run goes on with plain launches from the plain step's
+    state.
     """
 
     inputs: tuple = ()
@@ -256,8 +206,7 @@ class Simulation:
         scene, inputs = resolve_scene(scene, overrides)
         comm_argument("comm", comm)
         backend = Backend.of(pick_device(device, comm=comm))  # a name Warp does not know is refused in one line
-        # N (None: a single run) and how the members start, checked
-        members, initial, start = asked(scene, members, initial, start, self._of_members)
+        members, initial, start = asked(scene, members, initial, start, self._of_members)  # N (None: a single run)
         if initial_diagnostics is not None:
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
@@ -291,42 +240,31 @@ class Simulation:
     # -- the run's state (``run_state.RunState``): the scene it runs, its step control, t = 0 diagnostics, counters
     scene = forwarded("run_state.scene", "The ``Scene`` run (resolved; a fitted Δt or a lengthened run replace it).")
     control = forwarded("core.control", "The integrator's ``StepControl`` under ``Scene.control``, else None.")
-    initial = forwarded(
-        "run_state.initial", "The t = 0 diagnostics relative changes are taken against (members: (N,) by name)."
-    )
+    initial = forwarded("run_state.initial", "The t = 0 diagnostics changes are taken against (members: (N,) each).")
     counters = forwarded("core.counters", "RHS evaluations, wall and CPU seconds and solver iterations so far.")
     time = forwarded("run_state.time", "Days since t = 0 at the current step (``RunState.time``).")
     event_day = forwarded("run_state.event_day", "The day a controlled step landed on (``RunState.event_day``).")
 
     # -- the members' states and diagnostics (``members.members.Members``), squeezed (``squeeze``)
-    fields = _squeezed(Members.fields)
-    divergence = _squeezed(Members.divergence)
-    courant = _squeezed(Members.courant)
-    stability_warning = _squeezed(Members.stability_warning)
-    largest_dt_within_limit = _squeezed(Members.largest_dt_within_limit)
-    invariants = _squeezed(Members.invariants)
-    errors = _squeezed(Members.errors)
-    states = _delegated(Members.states, attrgetter("members"))
-    set_states = _delegated(Members.set_states, attrgetter("members"))
-    h_spread_rms = _delegated(Members.h_spread_rms, attrgetter("members"))
+    fields = squeezed(Members.fields)
+    divergence = squeezed(Members.divergence)
+    courant = squeezed(Members.courant)
+    stability_warning = squeezed(Members.stability_warning)
+    largest_dt_within_limit = squeezed(Members.largest_dt_within_limit)
+    invariants = squeezed(Members.invariants)
+    errors = squeezed(Members.errors)
+    states = delegated(Members.states, attrgetter("members"))
+    set_states = delegated(Members.set_states, attrgetter("members"))
+    h_spread_rms = delegated(Members.h_spread_rms, attrgetter("members"))
 
     # -- the step: the integrator's (``integrator.core.Integrator``, one unit of one member) and its graphs
     step = forwarded("core.step", "Steps taken since t = 0 (a branch: since its day, ``Scene.start_day``).")
-    x = _of_one("x", "x", "The state (3, n) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
-    last_good = _of_one("last_good", "start", "The state (3, n) at the start of the step or block in progress.")
+    x = of_one("x", "x", "The state (3, n) on the device: rows u, v (m s⁻¹), h (m) on this rank's nodes.")
+    last_good = of_one("last_good", "start", "The state (3, n) at the start of the step or block in progress.")
     # a step of the stepper, not watched nor counted: a controlled run's tries (``integrator.control.StepControl``)
-    try_step = _of_one("try_step", "try_step", "One step of the stepper on a state x (3, n) in place (``Unit``).")
+    try_step = of_one("try_step", "try_step", "One step of the stepper on a state x (3, n) in place (``Unit``).")
 
-    @property
-    def stepper(self):
-        """The stepper (``steppers``) prepared on the state: the one that steps every member (a single
-        run's, members "shared"); members "in_turn", N > 1: ``ArgumentError`` (one a member, in ``members.units``)."""
-        if len(self.core.units) > 1:
-            raise ArgumentError(
-                f"Simulation.stepper: {len(self.core.units)} members each step on a model and stepper of their own "
-                "(layout 'in_turn'); members.units holds them"
-            )
-        return self.core.units[0].stepper
+    stepper = of_one("stepper", "stepper", "The stepper prepared on the state, of every member (``steppers``).", True)
 
     @property
     def graphs(self):
@@ -348,15 +286,8 @@ class Simulation:
         """Step graphs compared bit for bit with plain ones (``GraphedSteps.checked``, over the units)."""
         return sum(u.graphed.checked for u in self.core.units)
 
-    @property
-    def dropped(self) -> dict[int, int]:
-        """{member: the step it blew up at} of the members dropped (``blow_up`` "drop"; collective)."""
-        return dict(self.members.dropped)  # a copy: a single run's is its diagnostics' class-wide {}
-
-    @property
-    def drops(self) -> list[str]:
-        """The one line of each member dropped, in the order they were (collective)."""
-        return list(self.members.drops)
+    dropped = property(lambda sim: sim.members.dropped, doc=Members.dropped.__doc__)
+    drops = property(lambda sim: sim.members.drops, doc=Members.drops.__doc__)
 
     def __getattr__(self, name: str):
         """An old name of a part (``RENAMED``), after its one-line ``DeprecationWarning``."""
@@ -384,9 +315,10 @@ class Simulation:
     ) -> RunResult:
         """Integrate the scene from the current step; write ``output`` (netCDF) if given.
 
-        Blocks of steps by the integrator, each checked by its guard (``integrator.core.Integrator``), Δt
-        the fixed one's or under step control the controller's (``guard.RunObserver.steer``), then the activities due (``activities``): the run file and its
-        ``[[output.streams]]``, the restart file, the callbacks and writers, the log.
+        Blocks of steps by the integrator, each checked by its guard (``integrator.core.Integrator``), Δt the fixed
+        one's or under step control the controller's (``guard.RunObserver.steer``), then the activities due
+        (``activities``): the run file and its ``[[output.streams]]``, the restart file, the callbacks and writers,
+        the log.
 
         Parameters
         ----------
@@ -448,9 +380,8 @@ class Simulation:
         end = self.core.step >= until_step if until_step is not None else self.time >= (until_day or self.scene.days)
         if output is not None and end:
             raise ArgumentError(at_its_end(type(self).__name__, self.core.step, self.scene))  # a file of no time
-        files, ckp, start, courant, first = self._open(
-            output, overwrite, restart_every, restart_file, compress, history, on_output, notify
-        )
+        paths, opts = (output, overwrite, restart_every, restart_file), (compress, history, on_output, notify)
+        files, ckp, start, courant, first = open_files(self, *paths, *opts, self._compile)
         ledger = Ledger(self.counters, self.scene, self.core.step, notify if self.root else None)
         signals = StopSignals(self.members.ranks, catch_signals)
         d, lines = self.members, progress_lines if self.root else None
@@ -475,26 +406,25 @@ class Simulation:
 
     # -- driven from Python (Oceananigans' ``Simulation``: step, inspect, call back); intervals of whole
     # steps, Δt fitted to them where it is the simulation's own (``intervals``: ``every``, ``fit_dt``, …)
-    every = _delegated(Intervals.every, attrgetter("intervals"))
+    every = delegated(Intervals.every, attrgetter("intervals"))
 
     def add_callback(
         self, fn, *, every_days: float | None = None, every_steps: int | None = None, name: str | None = None
     ) -> None:
-        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days``
-        (``every``), in ``run``, ``advance`` and ``steps`` (Oceananigans' ``add_callback!``):
-        an activity in ``activities`` under ``name`` (default "callback N"). ``fn`` may read
-        ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the run (its
-        output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not
-        callable, ``name`` not a str, and as ``every``."""
+        """Call ``fn(self)`` after every ``every_steps``-th step, or every ``every_days`` (``every``), in ``run``,
+        ``advance`` and ``steps`` (Oceananigans' ``add_callback!``): an activity in ``activities`` under ``name``
+        (default "callback N"). ``fn`` may read ``sim.step``, ``sim.time``, ``sim.state()``; what it raises ends the
+        run (its output files dropped). Under MPI add it on every rank. ``SceneError`` for ``fn`` not callable,
+        ``name`` not a str, and as ``every``."""
         callable_argument("fn", fn, "a callable fn(sim)", SceneError)
         if name is not None and not isinstance(name, str):
             raise SceneError(f"name must be a str or None (got {got(name)})")
         add_callback(self.activities, fn, self.every(days=every_days, steps=every_steps), name)
 
     def advance(self, days: float) -> RunResult:
-        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up,
-        signals and callbacks as there; no output file); under step control the steps land
-        on the day reached. Past the scene's end the run is lengthened (``config.with_days``).
+        """Step ``days`` further with ``run``'s loop (the same bits as one run; blow-up, signals and callbacks as there;
+        no output file); under step control the steps land on the day reached. Past the scene's end the run is
+        lengthened (``config.with_days``).
 
         Parameters
         ----------
@@ -528,14 +458,12 @@ class Simulation:
         return self.run(None, until_step=target)
 
     def steps(self, every: float):
-        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0
-        at a time (``for t in sim.steps(every=0.5): ds = sim.state()``); stops at the last
-        multiple at or before the end.
+        """Iterate the run to the scene's end, one multiple of ``every`` days from t = 0 at a time (``for t in
+        sim.steps(every=0.5): ds = sim.state()``); stops at the last multiple at or before the end.
 
-        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file:
-        ``swe-sphere run`` shortens it likewise to divide the output interval) and no step
-        has been taken, a Δt that does not divide ``every`` is first shortened to the
-        largest that divides ``every``, the run, its output intervals and the callbacks'
+        Where Δt is the simulation's own (no ``dt`` given, the scene named or a file: ``swe-sphere run`` shortens it
+        likewise to divide the output interval) and no step has been taken, a Δt that does not divide ``every`` is
+        first shortened to the largest that divides ``every``, the run, its output intervals and the callbacks'
         (``fit_dt``; so do ``advance`` and ``every`` for their intervals).
 
         Parameters
@@ -580,10 +508,9 @@ class Simulation:
         Returns
         -------
         xarray.Dataset or None
-            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹),
-            vorticity, divergence (s⁻¹) on ``ncol`` (N > 1: on (``member``, ``ncol``), the
-            ``squeeze`` rule) with hs, area, lat, lon and ``time`` in days
-            (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹), vorticity, divergence (s⁻¹) on
+            ``ncol`` (N > 1: on (``member``, ``ncol``), the ``squeeze`` rule) with hs, area, lat, lon and ``time`` in
+            days (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
 
         Raises
         ------
@@ -606,39 +533,18 @@ class Simulation:
     # -- restarts: its state and history restored from a checkpoint, its restart file written
 
     def restore(self, ck: ckpt.Checkpoint, *, state: bool = True) -> None:
-        """Set every member's state, stepper history, the counters, the step control and t = 0
-        invariants from a checkpoint of the run's kind (``CheckpointError`` for a state of another
-        grid, or a history that does not fit the stepper); ``state`` False: a single run's state
-        left as it is (built from ``ck``'s, ``from_checkpoint``: handed out over the ranks once)."""
+        """Set every member's state, stepper history, the counters, the step control and t = 0 invariants from a
+        checkpoint of the run's kind (``CheckpointError`` for a state of another grid, or a history that does not fit
+        the stepper); ``state`` False: a single run's state left as it is (built from ``ck``'s, ``from_checkpoint``:
+        handed out over the ranks once)."""
         restore_run(self.run_state, ck, lambda: self.members.restore(ck, state))
 
     def write_checkpoint(self, path, *, overwrite: bool = False, restart_every: float | None = None) -> Path:
-        """Write a restart file of the current step (see ``checkpoint``): whole-grid
-        fields, gathered from every rank (call on all), written by rank 0;
-        ``restart_every`` (days) recorded for a continuation to keep. Members: every member's
-        state and its stepper's history, the member count, the layout and the variants. An
-        existing ``path`` is replaced only with ``overwrite`` (else ``OutputError``), as every
-        writer of the package does."""
+        """Write a restart file of the current step (see ``checkpoint``): whole-grid fields, gathered from every rank
+        (call on all), written by rank 0; ``restart_every`` (days) recorded for a continuation to keep. Members: every
+        member's state and its stepper's history, the member count, the layout and the variants. An existing ``path``
+        is replaced only with ``overwrite`` (else ``OutputError``), as every writer of the package does."""
         d = self.members  # (x, stepper states, initial, grid) on rank 0, else None; an ensemble's member count
         parts, kept = d.restart_parts(), {"overwrite": overwrite, "restart_every": restart_every, "members": d.members}
         kept["analysed"] = getattr(self.case, "analysed", None)  # a reanalysis start's: its continuation's case
         return Path(path) if parts is None else write_restart(path, self.run_state, *parts, **kept)
-
-    # -- the loop's parts: its blocks of steps, a blow-up's line, its files and its own activities
-
-    def _open(self, output, overwrite, restart_every, restart_file, compress, history, on_output, notify) -> tuple:
-        """A run's run files and checkpointer (paths checked; the files created on rank 0),
-        the start's gathered fields, its Courant numbers (a single run's) and its members'
-        diagnostics (None for a single run). ValueError for a user's activity under a name the
-        run gives its own."""
-        d, paths = self.members, (output, restart_every, restart_file, overwrite)
-        ckp = Checkpointer(self.run_state, self.write_checkpoint, d.bcast, self.root, *paths)
-        files = RunFiles(self.run_state, d, self.grid, self.hs, output, on_output, d.series)
-        check_run_files(self.activities, self.root, self.inputs, files, ckp, overwrite)
-        with compile_timer(self._compile):  # a continuation's first use of the diagnostic kernels
-            start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank
-        name = f"swe_sphere.{type(self).__name__}.run"
-        courant, first, attrs, more = opening(d, files, start, history, name, self.dfi, self.device)
-        if output is not None and self.root:
-            files.open(attrs, overwrite=overwrite, compress=compress, notify=notify, **more)
-        return files, ckp, start, courant, first

@@ -142,13 +142,19 @@ def dss_rows_at(rows: int, weighted: bool, copies: int, ghosts: bool = False, dt
     return wp.kernel(dss_at, enable_backward=False, module="unique")
 
 
+def state_suffix(state) -> str:
+    """What a DSS update's key adds for its terms' and outputs' float type: nothing for float64."""
+    return "" if state is f64 else "__state" + suffix(state)
+
+
 @functools.cache
 def combination(pattern: str):
     """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i, summed left to
     right as ``blas.axpby``/``axpbypcz`` do (the same bits), with the terms
     named by ``pattern``: "a" the next of the arrays s0, s1 at [r, p], "k" the
     value k: node values (float64), or GLL rows (``dss_update_elements``: k a row,
-    the arrays row views, lane by lane the same bits). One to three terms, at most two "a" and one "k" (e.g. "ak",
+    the arrays row views, lane by lane the same bits); arrays of a float32 state read into
+    float64. One to three terms, at most two "a" and one "k" (e.g. "ak",
     "aak", "aka", "a", "k")."""
     if not 1 <= len(pattern) <= 3 or set(pattern) - {"a", "k"} or pattern.count("k") > 1 or pattern.count("a") > 2:
         raise ValueError(f"a combination is 1 to 3 terms of at most two arrays 'a' and one 'k' (got {pattern!r})")
@@ -158,22 +164,23 @@ def combination(pattern: str):
     A0, A1 = P[0] == "a", P[:2].count("a")  # term 0 an array; term 1 is s1 (A1 = 2) or s0
 
     def combine(c: wp.vec3d, k: Any, s0: wp.array2d(dtype=Any), s1: wp.array2d(dtype=Any), r: int, p: int):
+        # the arrays' values in k's float64 (a float32 state's widened: the sum in float64, rounded once as stored)
         t = k
         if wp.static(A0):
-            t = s0[r, p]
+            t = type(k)(s0[r, p])
         v = c[0] * t
         if wp.static(N > 1):
             t = k
             if wp.static(not K1):
                 if wp.static(A1 == 2):
-                    t = s1[r, p]
+                    t = type(k)(s1[r, p])
                 else:
-                    t = s0[r, p]
+                    t = type(k)(s0[r, p])
             v = v + c[1] * t
         if wp.static(N > 2):
             t = k
             if wp.static(not K2):
-                t = s1[r, p]
+                t = type(k)(s1[r, p])
             v = v + c[2] * t
         return v
 
@@ -182,7 +189,9 @@ def combination(pattern: str):
 
 
 @functools.cache
-def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True, dtype=f64):
+def dss_update(
+    rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True, dtype=f64, state=f64
+):
     """The weighted DSS k of ``rows`` rows (``gather``; ``weighted`` False: the unweighted
     DSS of a weak form, as ``dss_rows``') not stored but used by
     one or two linear combinations, node by node (a Runge–Kutta stage's
@@ -193,7 +202,9 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
     ``dss_rows``), c (6 coefficients),
     s00, s01, out0, s10, s11, out1 (rows, N) (the unused ones any such array),
     block, offset. Outputs and terms may alias each other, not x. Dim N/block
-    (as ``dss_rows``). x of ``dtype`` (``gather``), the rest float64."""
+    (as ``dss_rows``). x of ``dtype`` (``gather``); the terms and outputs of ``state``
+    (float32: the float32 state's stages, each combination summed in float64 and rounded once as
+    it is stored; ``precision = "float32_state"``), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     sum_copies = gather(rows, bool(weighted), copies, ghosts, dtype)
@@ -205,12 +216,12 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
         x: wp.array2d(dtype=dtype),
         d: Copies,
         c: vec6,
-        s00: wp.array2d(dtype=f64),
-        s01: wp.array2d(dtype=f64),
-        out0: wp.array2d(dtype=f64),
-        s10: wp.array2d(dtype=f64),
-        s11: wp.array2d(dtype=f64),
-        out1: wp.array2d(dtype=f64),
+        s00: wp.array2d(dtype=state),
+        s01: wp.array2d(dtype=state),
+        out0: wp.array2d(dtype=state),
+        s10: wp.array2d(dtype=state),
+        s11: wp.array2d(dtype=state),
+        out1: wp.array2d(dtype=state),
         block: int,
         offset: int,
     ):
@@ -218,11 +229,12 @@ def dss_update(rows: int, copies: int, patterns: tuple, ghosts: bool = False, we
         for p in range(start, start + block):
             k = sum_copies(x, d, p)
             for r in range(wp.static(rows)):
-                out0[r, p] = first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p)
+                out0[r, p] = state(first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p))
                 if wp.static(TWO):
-                    out1[r, p] = second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p)
+                    out1[r, p] = state(second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p))
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted") + suffix(dtype)
+    name += state_suffix(state)
     dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
@@ -320,17 +332,21 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, d
 
 
 @functools.cache
-def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int, dtype=f64):
+def dss_update_elements(
+    rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int, dtype=f64, state=f64
+):
     """``dss_update`` by element on GLL rows (``gather_row``; the same bits), for the CPU, and
     with the one pattern "k" and c[0] = 1 ``dss_rows`` (1·k is k): arguments xr, x (x as rows
     and as it is), d (``Copies``), g (``Edges``), wr, rsr (spheremp's first N and rspheremp as
     rows), c, then s00, s01, out0, s10, s11, out1 as rows, offset; dim nelem. Outputs and terms
-    may alias each other, not x. x of ``dtype`` (``gather_row``), the rest float64."""
+    may alias each other, not x. x of ``dtype`` (``gather_row``), the terms and outputs of
+    ``state`` (as ``dss_update``'s), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     R, NP = int(rows), int(np_)
     vec = wp.types.vector(length=NP, dtype=f64)
     xvec = operators.row_type(NP, dtype)
+    svec = operators.row_type(NP, state)
     row_dss = gather_row(rows, weighted, copies, ghosts, np_, dtype)
     first = combination(patterns[0])
     second = combination(patterns[-1])
@@ -344,12 +360,12 @@ def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, w
         wr: wp.array(dtype=vec),
         rsr: wp.array(dtype=vec),
         c: vec6,
-        s00: wp.array2d(dtype=vec),
-        s01: wp.array2d(dtype=vec),
-        out0: wp.array2d(dtype=vec),
-        s10: wp.array2d(dtype=vec),
-        s11: wp.array2d(dtype=vec),
-        out1: wp.array2d(dtype=vec),
+        s00: wp.array2d(dtype=svec),
+        s01: wp.array2d(dtype=svec),
+        out0: wp.array2d(dtype=svec),
+        s10: wp.array2d(dtype=svec),
+        s11: wp.array2d(dtype=svec),
+        out1: wp.array2d(dtype=svec),
         offset: int,
     ):
         e = wp.tid() + offset
@@ -357,12 +373,12 @@ def dss_update_elements(rows: int, copies: int, patterns: tuple, ghosts: bool, w
             q = e * NP + j
             for r in range(R):
                 k = row_dss(xr, x, d, g, wr, rsr, e, j, r)
-                out0[r, q] = first(wp.vec3d(c[0], c[1], c[2]), k, s00, s01, r, q)
+                out0[r, q] = svec(first(wp.vec3d(c[0], c[1], c[2]), k, s00, s01, r, q))
                 if wp.static(TWO):
-                    out1[r, q] = second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q)
+                    out1[r, q] = svec(second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q))
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
-    name = ("dss" if patterns == ("k",) else name) + suffix(dtype)  # "k": the DSS's key
+    name = ("dss" if patterns == ("k",) else name) + suffix(dtype) + state_suffix(state)  # "k": the DSS's key
     dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 

@@ -158,8 +158,18 @@ def tracer_suffix(tracers: int) -> str:
     return f"__q{int(tracers)}" if tracers else ""
 
 
+def _departed(departed: bool, dtype, tracers: int) -> bool:
+    """Whether a tendency kernel reads the float32 state (``departed``); ValueError for one
+    under float64 or with tracers (its continuity is written for u, v and h alone)."""
+    if departed and (dtype is f64 or tracers):
+        raise ValueError("a departed (float32) state is read by a float32 tendency without tracers")
+    return bool(departed)
+
+
 @functools.cache
-def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64, tracers: int = 0):
+def tendency(
+    terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
+):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
     x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
@@ -172,17 +182,22 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
     (m) a reference depth subtracted in float64 before the rounding (∇(g h0) = 0: the pressure
     gradient keeps the digits of h's variation, not of its 10 km); under float64 h0 is unread.
     ``tracers`` K: with the continuity, rows 3..3+K−1 of x and tend are tracer masses hq and
-    their tendencies (the module's note); ValueError for K > 0 without the continuity."""
+    their tendencies (the module's note); ValueError for K > 0 without the continuity.
+    ``departed``: the float32 state (``precision = "float32_state"``): x in ``dtype``, its h row
+    the departure h − h0 (h0 of ``dtype``), which the Bernoulli function takes as it is and the
+    continuity's flux as (h − h0) + h0; ValueError with tracers or under float64."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG  # ∇ of the Bernoulli function ½|v|² + g h
     NP = int(np_static)
     SHIFT = dtype is not f64
     K = int(tracers)
+    DEPARTED = _departed(departed, dtype, K)
     if K and not CONT:
         raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
+    xtype = dtype if DEPARTED else f64
 
     def kernel(
-        x: wp.array2d(dtype=f64),
+        x: wp.array2d(dtype=xtype),
         D: wp.array2d(dtype=dtype),
         Dinv: wp.array2d(dtype=dtype),
         metdet: wp.array(dtype=dtype),
@@ -192,7 +207,7 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
         dvv: wp.array2d(dtype=dtype),
         np_: int,
         g: dtype,
-        h0: f64,
+        h0: xtype,
         tend: wp.array2d(dtype=dtype),
         offset: int,
     ):
@@ -212,8 +227,11 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
             uq, vq, hq = dtype(x[0, q]), dtype(x[1, q]), dtype(x[2, q])  # the state in the tendency's type
             ur, vr, hr = dtype(x[0, r]), dtype(x[1, r]), dtype(x[2, r])
             if wp.static(CONT):
-                div += dvv[i, m] * metdet[q] * hq * (Dinv[0, q] * uq + Dinv[1, q] * vq)
-                div += dvv[j, m] * metdet[r] * hr * (Dinv[2, r] * ur + Dinv[3, r] * vr)
+                dq, dr = hq, hr  # the depth, h0 added back to a departed state's h − h0
+                if wp.static(DEPARTED):
+                    dq, dr = hq + h0, hr + h0
+                div += dvv[i, m] * metdet[q] * dq * (Dinv[0, q] * uq + Dinv[1, q] * vq)
+                div += dvv[j, m] * metdet[r] * dr * (Dinv[2, r] * ur + Dinv[3, r] * vr)
             if wp.static(GRAD):
                 eq = dtype(0.0)
                 er = dtype(0.0)
@@ -221,7 +239,10 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
                     eq += dtype(0.5) * (uq * uq + vq * vq)
                     er += dtype(0.5) * (ur * ur + vr * vr)
                 if wp.static(PG):
-                    if wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
+                    if wp.static(DEPARTED):  # the state's h − H₀ as it is stored
+                        eq += g * hq
+                        er += g * hr
+                    elif wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
                         eq += g * dtype(x[2, q] - h0)
                         er += g * dtype(x[2, r] - h0)
                     else:
@@ -250,27 +271,31 @@ def tendency(terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64
         + ("__mass" if weighted else "")
         + (f"__np{NP}" if NP else "")
         + tracer_suffix(K)
+        + ("__departed" if DEPARTED else "")
         + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache
-def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, tracers: int = 0):
+def tendency_element(
+    terms: tuple, np_: int, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
+):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
     (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
     (``weighted``: as ``tendency``'s), g, h0 (a float64 row of the reference depth),
     dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in elements). Dim nelem.
-    ``dtype``, h0 and ``tracers`` as ``tendency``'s."""
+    ``dtype``, h0, ``tracers`` and ``departed`` as ``tendency``'s (h0 a row of x's type)."""
     CONT, ADV, _, PG, _ = term_flags(terms)
     GRAD = ADV or PG
     NP = int(np_)
     K = int(tracers)
+    DEPARTED = _departed(departed, dtype, K)
     if K and not CONT:
         raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
     vec, mat, along, across = row_derivatives(NP, dtype)
-    state = row_type(NP)  # the state's rows, float64
+    state = row_type(NP, dtype if DEPARTED else f64)  # the state's rows
     SHIFT = dtype is not f64
     ROW = across_as_along(NP)  # ∂η as along(dvv[j], F)
 
@@ -303,7 +328,10 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
             v = vec(x[1, q])
             h = vec(x[2, q])
             if wp.static(CONT):
-                Jh = times(metdet[q], h)
+                depth = h  # h0 added back to a departed state's h − h0
+                if wp.static(DEPARTED):
+                    depth = h + h0
+                Jh = times(metdet[q], depth)
                 c1 = times(Dinv[0, q], u) + times(Dinv[1, q], v)
                 c2 = times(Dinv[2, q], u) + times(Dinv[3, q], v)
                 f1[j] = times(Jh, c1)
@@ -317,7 +345,9 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
                 v1[j] = c1
                 v2[j] = c2
             if wp.static(PG):
-                if wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
+                if wp.static(DEPARTED):  # the state's h − H₀ as it is stored
+                    E[j] = E[j] + g * h
+                elif wp.static(SHIFT):  # h − H₀ formed in float64 before it is rounded
                     E[j] = E[j] + g * vec(x[2, q] - h0)
                 else:
                     E[j] = E[j] + g * h
@@ -365,6 +395,11 @@ def tendency_element(terms: tuple, np_: int, weighted: bool = False, dtype=f64, 
                 wp.static(tracer_finish(weighted))(q, 3 + k, div, metdet, mass, tend)
 
     kernel.__qualname__ = kernel.__name__ = (
-        "tendency__" + "__".join(terms) + ("__mass" if weighted else "") + tracer_suffix(K) + suffix(dtype)
+        "tendency__"
+        + "__".join(terms)
+        + ("__mass" if weighted else "")
+        + tracer_suffix(K)
+        + ("__departed" if DEPARTED else "")
+        + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

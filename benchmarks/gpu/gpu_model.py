@@ -30,6 +30,11 @@ iteration counts at a fixed Courant number barely change with ne
 
     python benchmarks/gpu/gpu_model.py                  # ne 8 counts, tables for ne 30 120 240
     python benchmarks/gpu/gpu_model.py --ne 16 --at 30 60 --implicit-dt-factor 10
+    python benchmarks/gpu/gpu_model.py --precision float32_state    # issue 128: the float32 state's bytes
+
+``--precision`` counts the model in "float32" (the mixed design: the tendency and the ∇⁴'s
+Laplacians float32, the state and stages float64) or "float32_state" (the state and the stages
+float32 too: the RHS on the float32 state, and only the steppers that carry it).
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ from results import recorded
 
 # isort: split
 from implicit_cost import use_krylov  # noqa: E402  (after the path: benchmarks/ first)
+from precision_speed import float32_state  # noqa: E402
 from rhs_throughput import build as tc5  # noqa: E402
 
 from swe_sphere import STEPPERS, load_scene, make_stepper
@@ -82,19 +88,28 @@ FLOPS = {
 
 
 def count(args, tally):
-    """{'rhs'|'hv'|stepper: (launches, bytes per point, syncs, kernels Counter, bytes Counter)} at args.ne."""
+    """{'rhs'|'hv'|stepper: (launches, bytes per point, syncs, kernels Counter, bytes Counter)} at args.ne,
+    in ``args.precision`` (under "float32_state" the RHS of the float32 state, as its stages
+    evaluate it, and the steppers that carry it)."""
     out = {}
-    _, _, (_, _, x0), model = tc5(args.ne, **CUDA_ON_CPU)
+    _, _, (_, _, x0), model = tc5(args.ne, precision=args.precision, **CUDA_ON_CPU)
     x, y = model.new_state(*x0), model.new_state()
     N = model.N
-    for name, fn in (("rhs", lambda: model.rhs(x, y)), ("hv", lambda: model.hv.operator(x, y))):
+    state = (
+        (float32_state(model, x), wp.zeros(x.shape, dtype=wp.float32)) if args.precision == "float32_state" else (x, y)
+    )
+    for name, fn in (("rhs", lambda: model.rhs(*state)), ("hv", lambda: model.hv.operator(x, y))):
         fn()  # records
         with tally.counting() as t:
             fn()
         out[name] = (t.total_launches, t.total_bytes / N, t.syncs, t.launches.copy(), t.bytes.copy())
-    for name in STEPPERS:
+    for name in steppers(args.precision):
         _, scene, (_, _, x0), model = tc5(
-            args.ne, stepper=name, dt_factor=args.implicit_dt_factor if name in IMPLICIT else 1.0, **CUDA_ON_CPU
+            args.ne,
+            stepper=name,
+            dt_factor=args.implicit_dt_factor if name in IMPLICIT else 1.0,
+            precision=args.precision,
+            **CUDA_ON_CPU,
         )
         stepper = make_stepper(name, model, scene.dt)
         use_krylov(stepper, "kernels")  # the Krylov vector work as on CUDA (on a CPU device it runs in numpy)
@@ -107,6 +122,11 @@ def count(args, tally):
         s = args.steps
         out[name] = (t.total_launches / s, t.total_bytes / N / s, t.syncs / s, t.launches.copy(), t.bytes.copy())
     return out, N
+
+
+def steppers(precision: str) -> list[str]:
+    """The steppers counted in ``precision``: every one, but under "float32_state" those that carry it."""
+    return [n for n, c in STEPPERS.items() if precision != "float32_state" or c.float32_state_refusal is None]
 
 
 def cpu_check(ne, repeat):
@@ -168,7 +188,7 @@ def predictions(args, counts, names) -> None:
         dts = {ne: load_scene("tc5_mountain_homme", ne=ne, np_=4).dt for ne in args.at}
         print("| stepper | " + " | ".join(f"ne{ne} (Δt {dts[ne]:.1f} s)" for ne in args.at) + " |")
         print("|---|" + "---:|" * len(args.at))
-        for name in STEPPERS:
+        for name in names[2:]:
             cells = []
             for ne in args.at:
                 dt = dts[ne] * (args.implicit_dt_factor if name in IMPLICIT else 1.0)
@@ -189,6 +209,12 @@ def main(argv=None):
     )
     p.add_argument(
         "--implicit-dt-factor", type=float, default=4.0, help="Δt of semi_implicit, implicit, imex × TC5's explicit Δt"
+    )
+    p.add_argument(
+        "--precision",
+        choices=("float64", "float32", "float32_state"),
+        default="float64",
+        help="the model's (issue 128: each design's bytes; default %(default)s)",
     )
     args = p.parse_args(argv)
     wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
@@ -230,7 +256,7 @@ def main(argv=None):
     )
     print("| stepper | launches/step | host syncs/step | B/pt/step | RHS-eq (bytes) |")
     print("|---|---:|---:|---:|---:|")
-    names = ["rhs", "hv", *STEPPERS]
+    names = ["rhs", "hv", *steppers(args.precision)]
     for name in names:
         L, bpp, syncs, _, _ = counts[name]
         print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")

@@ -34,7 +34,7 @@
 * ``iterations``: the semi_implicit, imex and implicit steppers at
   ``--dt-factor`` × TC5's Δt: solver iterations per step on ``--device``
   (their device solvers) against the CPU (its defaults).
-* ``precision``: float32 and float64 side by side (issue 114 item 7; ``--precisions``): ``--scene`` at
+* ``precision``: float32 (or the float32 state, issue 128) and float64 side by side (issue 114 item 7; ``--precisions``): ``--scene`` at
   each ``--ne`` (default the scene's grid), one run a precision built at once, ``--warmup`` steps
   (compiles, records, captures), then ``--runs`` rounds of ``--graph-steps`` steps, the
   precisions in turn and their order swapped each round: ms a step (medians of the run's time
@@ -496,7 +496,7 @@ def main(argv=None):
     p.add_argument(
         "--precisions",
         nargs="+",
-        choices=("float64", "float32"),
+        choices=("float64", "float32", "float32_state"),
         default=["float64", "float32"],
         help="precision: the first the baseline",
     )

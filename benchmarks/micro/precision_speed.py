@@ -17,6 +17,10 @@ with ``time.process_time``, which another process's load does not inflate (one t
 
     SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py                      # ne30 np4, ne120 np4 (TC5), ne12 np8 (galewsky)
     SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py --peak-ne 120 240
+
+``--precisions float64 float32 float32_state`` adds the float32 state (issue 128: a step's
+state and stages in float32 too), its RHS on the float32 state as a stage reads it
+(``rhs_call``), each timed against float64 in the same rounds.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ GRIDS = {
     "tc5_ne120_np4": ("tc5_mountain", 120, 4),
     "galewsky_ne12_np8": ("galewsky", 12, 8),
 }
-PRECISIONS = ("float64", "float32")
+PRECISIONS = ("float64", "float32")  # the default; ``--precisions`` adds "float32_state" (issue 128)
 
 
 def device_bytes(*owners) -> int:
@@ -76,6 +80,21 @@ def device_bytes(*owners) -> int:
     for owner in owners:
         walk(owner, 2)
     return sum(seen.values())
+
+
+def float32_state(model, x):
+    """x as a float32 state's stages hold it (u, v, h − H₀ in float32: ``model.precision``)."""
+    departure = x.numpy() - np.array([0.0, 0.0, model.tendency_arrays.depth])[:, None]
+    return wp.array(departure.astype(np.float32), dtype=wp.float32, device=x.device)
+
+
+def rhs_call(model, x):
+    """The RHS a call: ``model.rhs`` (the tendency and its DSS) into an array of x's type; under
+    "float32_state" on the float32 state (``float32_state``) into a float32 array."""
+    if model.state_dtype is not wp.float64:
+        x = float32_state(model, x)
+    out = wp.zeros_like(x)
+    return lambda: model.rhs(x, out)
 
 
 def build(name: str, ne: int, np_: int, precision: str):
@@ -128,44 +147,53 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=10, help="calls a timing (the mean)")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu")
     ap.add_argument("--peak-ne", type=int, nargs="*", default=[], help="TC5 grids for the peak-memory rows")
+    ap.add_argument(
+        "--precisions",
+        nargs="+",
+        default=list(PRECISIONS),
+        choices=("float64", "float32", "float32_state"),
+        help="float64 first, each timed against it (default %(default)s)",
+    )
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")
     args = ap.parse_args(argv)
     quiet_warp()  # quietly
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
     with recorded("precision_speed", args.results) as figures:
         print(f"clock {args.clock}, one thread, medians of {args.rounds} rounds of {args.repeat} calls")
-        print(
-            "| grid | nodes | RHS float64 Mpt/s | RHS float32 Mpt/s | ratio | step float64 ms | step float32 ms | ratio | device MiB float64 | float32 | ratio |"
-        )
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        precisions = args.precisions
+        if precisions[0] != "float64":
+            ap.error("--precisions: float64 first (the others are timed against it)")
+        lower = precisions[1:]
+        head = ["grid", "nodes", "RHS float64 Mpt/s", *(f"{p} (ratio)" for p in lower), "step float64 ms"]
+        head += [*(f"{p} (ratio)" for p in lower), "device MiB float64", *(f"{p} (ratio)" for p in lower)]
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
         for key in args.grids:
             name, ne, np_ = GRIDS[key]
-            built = {p: build(name, ne, np_, p) for p in PRECISIONS}
-            out = {p: wp.zeros_like(built[p][2]) for p in PRECISIONS}
-            rhs, step = {p: [] for p in PRECISIONS}, {p: [] for p in PRECISIONS}
+            built = {p: build(name, ne, np_, p) for p in precisions}
+            calls = {p: rhs_call(built[p][0], built[p][2]) for p in precisions}
+            rhs, step = {p: [] for p in precisions}, {p: [] for p in precisions}
             for _ in range(args.rounds):
-                for p in PRECISIONS:
+                for p in precisions:
                     model, stepper, x = built[p]
-                    rhs[p].append(timed(clock, lambda m=model, x=x, o=out[p]: m.rhs(x, o), args.repeat))
+                    rhs[p].append(timed(clock, calls[p], args.repeat))
                     step[p].append(timed(clock, lambda s=stepper, x=x: s.step(x), args.repeat))
             n = built["float64"][0].N
-            rate = {p: n / statistics.median(rhs[p]) / 1e6 for p in PRECISIONS}
-            ms = {p: 1e3 * statistics.median(step[p]) for p in PRECISIONS}
-            mib = {p: device_bytes(built[p][0], built[p][1]) / 2.0**20 for p in PRECISIONS}
+            rate = {p: n / statistics.median(rhs[p]) / 1e6 for p in precisions}
+            ms = {p: 1e3 * statistics.median(step[p]) for p in precisions}
+            mib = {p: device_bytes(built[p][0], built[p][1]) / 2.0**20 for p in precisions}
             row = dict(nodes=n, rhs_mpts=rate, step_ms=ms, device_mib=mib)
             figures[key] = row
-            print(
-                f"| {key} | {n} | {rate['float64']:.1f} | {rate['float32']:.1f} | {rate['float32'] / rate['float64']:.2f} "
-                f"| {ms['float64']:.2f} | {ms['float32']:.2f} | {ms['float32'] / ms['float64']:.2f} "
-                f"| {mib['float64']:.1f} | {mib['float32']:.1f} | {mib['float32'] / mib['float64']:.2f} |"
-            )
-            del built, out
+            cells = [key, str(n)]
+            for figure, fmt in ((rate, ".1f"), (ms, ".2f"), (mib, ".1f")):
+                cells.append(f"{figure['float64']:{fmt}}")
+                cells += [f"{figure[p]:{fmt}} ({figure[p] / figure['float64']:.2f})" for p in lower]
+            print("| " + " | ".join(cells) + " |")
+            del built, calls
         for ne in args.peak_ne:
-            peaks = {p: child_peak_rss(ne, p) for p in PRECISIONS}
+            peaks = {p: child_peak_rss(ne, p) for p in precisions}
             figures[f"peak_rss_tc5_ne{ne}"] = peaks
-            print(
-                f"peak RSS, TC5 ne{ne} np4 run: float64 {peaks['float64']:.0f} MiB, float32 {peaks['float32']:.0f} MiB"
-            )
+            print(f"peak RSS, TC5 ne{ne} np4 run: " + ", ".join(f"{p} {peaks[p]:.0f} MiB" for p in precisions))
 
 
 if __name__ == "__main__":

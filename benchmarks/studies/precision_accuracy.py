@@ -1,7 +1,7 @@
 """The accuracy of ``--precision float32`` (issue 114, item 5): each row a scene and grid run
 twice, float64 and float32, the same in everything else, one after the other in one process.
 
-    SWE_SPHERE_THREADS=1 python benchmarks/studies/precision_accuracy.py [--rows ROW|GROUP ...] [--keep DIR]
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/precision_accuracy.py [--rows ROW|GROUP ...] [--keep DIR] [--precision P]
 
 Rows (``--rows``; groups ``galewsky``, ``tc5``, ``tc6``, ``tc2``, ``tc2_np4``, ``tc2_np8``, ``all``,
 the default): Galewsky to day 6 at the grids that reach Dinosaur's T42, T85, T170 and T213 errors
@@ -22,6 +22,10 @@ time loop's wall ms a step after the first output (the run file's ``wall_time``:
 a new kernel, in the first step, left out), its whole loop's wall s and the process's CPU s of each
 run (set-up and compile included). Verdict: "float32 holds" where |e32 − e64| ≤ 10 %
 of e64. Printed as a markdown table; figures to ``results/precision_accuracy/precision_accuracy.json``.
+
+``--precision`` sets another against float64 in the float32 column's place (issue 128):
+"float32_state" (a step's state and stages in float32, its increments compensated) or
+"float32_state_uncompensated" (``numerics.compensated = false``).
 """
 
 from __future__ import annotations
@@ -72,6 +76,9 @@ MEASURE = {
 OTHERS = ("ref_l2_h_surface", "ref_l2_wind", "ref_l2_vorticity_eq83", "l2_h", "l2_wind")
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 HOLDS = 0.10  # |e32 − e64| / e64 at most
+# the precisions set against float64 (``--precision``): the mixed float32, the float32 state
+# (``model.precision``), and the float32 state rounded at each step's end (numerics.compensated false)
+LOWER = ("float32", "float32_state", "float32_state_uncompensated")
 
 
 def expand(names: list[str]) -> list[str]:
@@ -85,8 +92,11 @@ def expand(names: list[str]) -> list[str]:
 
 
 def one_run(scene: str, ne, np_, stepper, precision: str, keep: str | None, name: str):
-    """(the run file's dataset, CPU s of the call) of a scene at a precision."""
-    overrides = {"precision": precision}
+    """(the run file's dataset, CPU s of the call) of a scene at a precision (``LOWER``'s label:
+    "float32_state_uncompensated", float32_state with ``numerics.compensated = false``)."""
+    overrides = {"precision": precision.removesuffix("_uncompensated")}
+    if precision.endswith("_uncompensated"):
+        overrides["numerics"] = {"compensated": False}
     overrides |= {k: v for k, v in (("ne", ne), ("np", np_), ("stepper", stepper)) if v is not None}
     if MEASURE[scene][2] is not None:
         overrides["case"] = {"reference": "T341"}
@@ -118,11 +128,11 @@ def norm(ds, f) -> float:
     return math.sqrt(float(np.sum(ds.area.values * f * f)))
 
 
-def row_figures(name: str, keep: str | None) -> dict:
-    """Both runs of a row and its figures."""
+def row_figures(name: str, keep: str | None, low: str = "float32") -> dict:
+    """Both runs of a row, float64 and ``low`` (a ``LOWER``), and its figures."""
     scene, ne, np_, stepper, label = ROWS[name]
     runs = {}
-    for precision in ("float64", "float32"):
+    for precision in ("float64", low):
         load = os.getloadavg()[0]
         ds, cpu = one_run(scene, ne, np_, stepper, precision, keep, name)
         last = ds.isel(time=-1)
@@ -137,11 +147,11 @@ def row_figures(name: str, keep: str | None) -> dict:
             "cpu_s": cpu,
             "load": load,
         }
-    d64, d32 = runs["float64"]["ds"], runs["float32"]["ds"]
+    d64, d32 = runs["float64"]["ds"], runs[low]["ds"]
     f_ref = truth(d64, scene)
     f64, f32 = field(d64, MEASURE[scene][1]), field(d32, MEASURE[scene][1])
     ref_norm = norm(d64, f_ref)
-    e64, e32 = runs["float64"]["error"], runs["float32"]["error"]
+    e64, e32 = runs["float64"]["error"], runs[low]["error"]
     field_diff = norm(d64, f32 - f64) / ref_norm
     scn = d64.attrs
     out = {
@@ -156,7 +166,8 @@ def row_figures(name: str, keep: str | None) -> dict:
         "steps": int(d64.steps.isel(time=-1)),
         "measure": MEASURE[scene][0],
         "error_float64": e64,
-        "error_float32": e32,
+        "low": low,
+        f"error_{low}": e32,
         "error_float64_recomputed": norm(d64, f64 - f_ref) / ref_norm,
         "error_difference": abs(e32 - e64) / e64,
         "field_difference": field_diff,
@@ -168,24 +179,24 @@ def row_figures(name: str, keep: str | None) -> dict:
     return out
 
 
-def table(rows: list[dict]) -> list[str]:
-    """The markdown table of the rows."""
+def table(rows: list[dict], low: str = "float32") -> list[str]:
+    """The markdown table of the rows (float64 against ``low``)."""
     lines = [
-        "| scene, grid | stepper, Δt | measure | float64 | float32 | \\|Δ error\\| / error | "
+        f"| scene, grid | stepper, Δt | measure | float64 | {low} | \\|Δ error\\| / error | "
         "‖f32 − f64‖ / ‖ref‖ (/ error) | mass change 64 / 32 | energy change 64 / 32 | "
         "enstrophy change 64 / 32 | CPU s (wall ms a step) 64 / 32 | verdict |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        a, b = r["float64"], r["float32"]
+        a, b = r["float64"], r[low]
         label = f" ({r['label']})" if r["label"] else ""
         inv = [f"{a['invariants'][k]:+.1e} / {b['invariants'][k]:+.1e}" for k in INVARIANTS]
         lines.append(
             f"| {r['scene']} ne{r['ne']} np{r['np']}{label}, day {r['days']:g} | {r['stepper']}, {r['dt']:.1f} s "
-            f"| {r['measure']} | {r['error_float64']:.4e} | {r['error_float32']:.4e} "
+            f"| {r['measure']} | {r['error_float64']:.4e} | {r[f'error_{low}']:.4e} "
             f"| {100 * r['error_difference']:.2g} % | {r['field_difference']:.2e} "
             f"({100 * r['field_difference_over_error']:.2g} %) | {' | '.join(inv)} "
-            f"| {a['cpu_s']:.1f} ({a['ms_step']:.1f}) / {b['cpu_s']:.1f} ({b['ms_step']:.1f}) | {'float32 holds' if r['holds'] else '**float32 does not hold**'} |"
+            f"| {a['cpu_s']:.1f} ({a['ms_step']:.1f}) / {b['cpu_s']:.1f} ({b['ms_step']:.1f}) | {f'{low} holds' if r['holds'] else f'**{low} does not hold**'} |"
         )
     return lines
 
@@ -199,6 +210,9 @@ def main() -> None:
         "--rows", nargs="+", default=["all"], choices=[*GROUPS, *ROWS], metavar="ROW", help="rows or groups"
     )
     parser.add_argument("--keep", metavar="DIR", help="keep the run files there (ROW_PRECISION.nc)")
+    parser.add_argument(
+        "--precision", default="float32", choices=LOWER, help="the precision set against float64 (default %(default)s)"
+    )
     parser.add_argument("--results", metavar="STEM", help="results/STEM.json (default precision_accuracy)")
     args = parser.parse_args()
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
@@ -207,17 +221,17 @@ def main() -> None:
     with recorded(__file__, args.results) as figures:
         rows = []
         for name in expand(args.rows):
-            rows.append(row_figures(name, args.keep))
+            rows.append(row_figures(name, args.keep, args.precision))
             r = rows[-1]
             print(
-                f"{name}: {r['measure']} float64 {r['error_float64']:.6e} float32 {r['error_float32']:.6e} "
+                f"{name}: {r['measure']} float64 {r['error_float64']:.6e} {args.precision} {r[f'error_{args.precision}']:.6e} "
                 f"(|Δ| {100 * r['error_difference']:.3g} %), field Δ {r['field_difference']:.3e} "
                 f"({100 * r['field_difference_over_error']:.3g} % of the error); ms a step "
-                f"{r['float64']['ms_step']:.2f} / {r['float32']['ms_step']:.2f}; load {os.getloadavg()[0]:.2f}",
+                f"{r['float64']['ms_step']:.2f} / {r[args.precision]['ms_step']:.2f}; load {os.getloadavg()[0]:.2f}",
                 flush=True,
             )
         print()
-        for line in table(rows):
+        for line in table(rows, args.precision):
             print(line)
         figures["rows"] = rows
 

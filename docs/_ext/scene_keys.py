@@ -136,7 +136,13 @@ KEYS = {
     "planet.gravity": ("9.80616", "m s⁻²"),
     "numerics.precision": (
         '"float64"',
-        'the tendency\'s floating-point type, "float64" or "float32" (the state float64 either way)',
+        'the tendency\'s floating-point type, "float64" or "float32" (the state float64), or "float32_state" '
+        "(a step's state and stages float32 too: the explicit Runge-Kutta steppers, a fixed dt)",
+    ),
+    "numerics.compensated": (
+        "true",
+        'under "float32_state": a step\'s float32 increment added to the float64 state in float64 (true), '
+        "or the state rounded to the float32 one (false)",
     ),
     "tracers.names": ("none", "the tracers' names: distinct identifiers, each a variable of the run file (q, units 1)"),
     "tracers.limiter": (

@@ -39,10 +39,11 @@ STABILITY_CASES = (
     "tc6_inviscid_ne30",
 )  # = the labels of stability.HARD_CASES (not imported: Warp)
 STABILITY_NE = 8  # the stability suite's grid for the cases that do not fix one
-PRECISIONS = ("float64", "float32")  # = config.resolve.PRECISIONS (not imported: Warp)
+PRECISIONS = ("float64", "float32", "float32_state")  # = config.resolve.PRECISIONS (not imported: Warp)
 PRECISION_HELP = (
-    "the RHS tendency's floating-point type, the state float64 either way (the scene's numerics.precision; "
-    "default float64); float32 is refused with implicit, epi2 and epi3"
+    "the RHS tendency's floating-point type, the state float64 (the scene's numerics.precision; "
+    "default float64); float32 is refused with implicit, epi2 and epi3; float32_state holds a step's "
+    "state and stages in float32 too, with the explicit Runge-Kutta steppers and a fixed dt"
 )
 
 

@@ -116,7 +116,10 @@ def header(args, sim, output, device, comm) -> None:
 
 def precision_line(scene) -> str:
     """The header's ``precision`` line: the scene's (``Scene.precision``), float32 the tendency's and the ∇⁴'s."""
-    state = " (tendency and hyperviscosity; state float64)" if scene.precision != "float64" else ""
+    state = {
+        "float32": " (tendency and hyperviscosity; state float64)",
+        "float32_state": " (tendency, hyperviscosity and a step's state and stages; state float64 between steps)",
+    }.get(scene.precision, "")
     return f"precision   {scene.precision}{state}"
 
 

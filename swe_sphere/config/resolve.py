@@ -340,18 +340,26 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
     return name, days
 
 
-# the precisions of the RHS tendency ([numerics] precision, ``--precision``); the state stays float64
-PRECISIONS = ("float64", "float32")
+# the precisions ([numerics] precision, ``--precision``): of the RHS tendency, the state float64;
+# "float32_state": the tendency and a step's state and stages (``model.precision``)
+PRECISIONS = ("float64", "float32", "float32_state")
 
 
-def resolve_precision(table: dict, stepper: str, precision=None) -> str:
+def resolve_precision(table: dict, stepper: str, precision=None, controlled: bool = False) -> str:
     """``Scene.precision`` of the [numerics] table and ``load_scene``'s ``precision`` (default
     "float64") for ``stepper``. Raises ``SceneError`` naming the key: a value not of
-    ``PRECISIONS``; "float32" with a stepper that refuses it (``Described.float32_refusal``)."""
+    ``PRECISIONS``; "float32" with a stepper that refuses it (``Described.float32_refusal``);
+    "float32_state" with one that refuses it (``Described.float32_state_refusal``) or with step
+    control (``controlled``: its estimate is read in float64)."""
     value = table.get("precision", "float64") if precision is None else precision
     if value not in PRECISIONS:
         raise SceneError(f"numerics.precision must be one of {', '.join(PRECISIONS)} (got {got(value)})")
     refuse_precision(value, stepper)
+    if value == "float32_state" and controlled:
+        raise SceneError(
+            'numerics.precision = "float32_state" with step control: its error estimate is read in float64; '
+            "use a fixed dt or float32"
+        )
     return value
 
 
@@ -359,9 +367,15 @@ def refuse_precision(precision: str, stepper: str) -> None:
     """Refuse (``SceneError``, one line) a ``precision`` that ``stepper`` cannot step in: float32
     with a stepper whose ``float32_refusal`` says why (its Jacobian-vector products difference the
     RHS); a scene resolved (``resolve_precision``) and one branched (``checkpoint.branch``)."""
-    why = STEPPERS[stepper].float32_refusal if precision == "float32" else None
+    described = STEPPERS[stepper]
+    why = described.float32_refusal if precision != "float64" else None
     if why is not None:
-        raise SceneError(f'numerics.precision = "float32" with stepper {stepper}: {why}; it runs in float64 only')
+        raise SceneError(f'numerics.precision = "{precision}" with stepper {stepper}: {why}; it runs in float64 only')
+    why = described.float32_state_refusal if precision == "float32_state" else None
+    if why is not None:
+        raise SceneError(
+            f'numerics.precision = "float32_state" with stepper {stepper}: {why}; use "float32" or an explicit Runge-Kutta stepper'
+        )
 
 
 def resolve_tracers(

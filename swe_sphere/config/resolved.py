@@ -98,7 +98,11 @@ class Scene:
         [ensemble] (``resolve.resolve_ensemble``): {"members", "perturbation", "seed"[, "degrees"]}; None: a single run.
     precision : str
         [numerics] precision: "float64" (the default) or "float32", the RHS tendency's type
-        (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64.
+        (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64; or
+        "float32_state", a step's state and stages float32 too (``model.precision``).
+    compensated : bool
+        [numerics] compensated: under "float32_state", whether a step's float32 increment is
+        added to the float64 state in float64 (True, the default); unread otherwise.
     tracers : tuple of (str, str)
         [tracers]: each passive tracer's name and its initial field, bundled
         (``cases.tracers.TRACER_FIELDS``) or a variable of ``tracer_file``, carried as hq in the
@@ -164,7 +168,8 @@ class Scene:
     own_dt: float | None = field(default=None, compare=False)
     own_planet: dict | None = field(default=None, compare=False)
     own_days: float | None = field(default=None, compare=False)
-    precision: str = "float64"  # [numerics] precision: the RHS tendency's type; the state stays float64
+    precision: str = "float64"  # [numerics] precision: the RHS tendency's type (and "float32_state": the state's)
+    compensated: bool = True  # [numerics] compensated: the float32 state's increments added in float64
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
     tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)
     tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
@@ -301,6 +306,8 @@ class Scene:
             del d["hypervis_every"]
         if d["precision"] == "float64":  # the default, likewise
             del d["precision"]
+        if d["compensated"]:  # the default, likewise
+            del d["compensated"]
         if not d["tracers"]:  # none: a scene's dict as before the key
             del d["tracers"]
         if d["tracer_file"] is None:  # the default, likewise

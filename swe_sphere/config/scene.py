@@ -72,7 +72,10 @@ the run length, the output interval and the hyperviscosity. Layout::
     [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
                       float32, the state and its accumulation float64; ``Scene.precision``):
                       refused with a stepper that differences the RHS
-                      (``Described.float32_refusal``)
+                      (``Described.float32_refusal``) | "float32_state" (a step's state and
+                      stages float32 too: the explicit Runge-Kutta steppers, a fixed dt),
+                      compensated = true | false (the float32 state's increments added in
+                      float64, or the state rounded: ``Scene.compensated``)
 
 Every problem raises ``SceneError`` (a ValueError) with a one-line message
 naming the offending key or value.
@@ -193,10 +196,12 @@ def load_scene(
         Run length (days).
     stepper : str, optional
         Time stepper (``steppers.STEPPERS``).
-    precision : {"float64", "float32"}, optional
+    precision : {"float64", "float32", "float32_state"}, optional
         The RHS tendency's floating-point type (``--precision``; the scene's
         ``numerics.precision``, default "float64"); the state stays float64. "float32" is
-        refused with a stepper that differences the RHS (``implicit``, ``epi2``, ``epi3``).
+        refused with a stepper that differences the RHS (``implicit``, ``epi2``, ``epi3``);
+        "float32_state" (a step's state and stages float32 too) with any but the explicit
+        Runge-Kutta steppers and with step control.
     mesh : str or path, optional
         An Exodus II file (relative to the current folder) to run on instead of the
         scene's grid (``--mesh``; ne = 0); where the mesh differs from the scene file's own
@@ -327,6 +332,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         own_dt=own_dt,
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
+        compensated=bool(s.get("numerics", {}).get("compensated", True)),
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
         tracer_file=resolve_tracer_file(s.get("tracers", {}), path),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),
@@ -372,8 +378,8 @@ def _tables(s: dict, path: Path, given: dict, mesh, file_grid, file_radius, rest
     output, time = s.get("output", {}), s.get("time", {})
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, given["stepper"], given["days"])
-    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"])
     controlled = is_controlled(time)
+    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"], controlled)
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
     times = Times(days, every, _stream_intervals(output), restart)
     np_factor = resolve_dt_np(time, scene_grid.np, grid.np)

@@ -150,7 +150,9 @@ SCHEMA = {
     "dfi": {"span_hours": float, "cutoff_hours": float},
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},
-    "numerics": {"precision": str},  # "float64" or "float32": the tendency's (``resolve.resolve_precision``)
+    # the tendency's (and "float32_state": the state's) float type; the float32 state's increments
+    # compensated (``resolve.resolve_precision``)
+    "numerics": {"precision": str, "compensated": bool},
     # passive tracers: names, their initial fields (bundled, or a file's variables), the limiter (``resolve_tracers``, ``resolve_limiter``)
     "tracers": {"names": list, "initial": list, "limiter": str, "hyperviscosity": bool, "file": str},
     # one table per stepper, named after it, with the stepper's own options

@@ -382,7 +382,8 @@ class Topology(RankReductions):
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the
         terms (a, src), src an array of x's shape or None for k
         (``kernels.dss.dss_update``: summed left to right, the bits of
-        ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x."""
+        ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x. The terms
+        and outputs float64, or all float32 (the float32 state's stages)."""
         patterns, coefs, arrays = [], [], []
         for out, terms in updates:
             patterns.append("".join("k" if src is None else "a" for _, src in terms))
@@ -395,14 +396,20 @@ class Topology(RankReductions):
             return self.by_element(
                 x,
                 lambda rows, copies, ghosts, np_: dss.dss_update_elements(
-                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_, x.dtype
+                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_, x.dtype, arrays[0].dtype
                 ),
                 [dss.vec6(*coefs), *(row_vectors(a, self.grid.np) for a in arrays)],
             )
         return self.gathering(
             x,
             lambda rows, copies, ghosts: dss.dss_update(
-                rows, copies, tuple(patterns), ghosts=ghosts, weighted=bool(weighted), dtype=x.dtype
+                rows,
+                copies,
+                tuple(patterns),
+                ghosts=ghosts,
+                weighted=bool(weighted),
+                dtype=x.dtype,
+                state=arrays[0].dtype,
             ),
             [dss.vec6(*coefs), *arrays],
         )

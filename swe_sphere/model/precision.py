@@ -12,6 +12,14 @@ the state and the accumulation of every increment, small against it (a step chan
 10 km by centimetres: float32's 6e-8 relative spacing would swallow them); the clock; the
 solvers; global sums, invariants and error norms. A float32 tendency reads half the
 geometry's and the tendency's bytes, and on a GPU without fast float64 runs at float32's rate.
+
+``precision = "float32_state"`` holds a step's state and stages in float32 as well: u, v and the
+depth's departure h − H₀ (``kernels.departure``), which the tendency reads as it is stored and
+the DSS's combinations write (each summed in float64 and rounded once); an explicit Runge–Kutta
+step takes them from the float64 state at its start and gives its increment back to it at its
+end, compensated (the float32 increment added in float64: Klöwer et al. 2022's compensated time
+integration) or not (``ShallowWater``'s ``compensated``). Between steps the state is float64: the
+clock's loop, the ∇⁴ (as under "float32"), the diagnostics and the files read it.
 """
 
 from __future__ import annotations
@@ -25,15 +33,22 @@ from ..core.arguments import got
 from ..core.errors import ArgumentError
 from ..kernels import operators
 
-PRECISIONS = {"float64": wp.float64, "float32": wp.float32}
+# the tendency's float type of each precision; "float32_state" holds the state too in float32
+PRECISIONS = {"float64": wp.float64, "float32": wp.float32, "float32_state": wp.float32}
 
 
 def precision_dtype(precision: str):
-    """The Warp float type of ``precision`` ("float64" or "float32"); ``ArgumentError``
-    naming ``precision`` otherwise."""
+    """The Warp float type of ``precision``'s tendency ("float64", or "float32" for "float32" and
+    "float32_state"); ``ArgumentError`` naming ``precision`` otherwise."""
     if not isinstance(precision, str) or precision not in PRECISIONS:
         raise ArgumentError(f"precision must be one of {', '.join(PRECISIONS)} (got {got(precision)})")
     return PRECISIONS[precision]
+
+
+def state_dtype(precision: str):
+    """The Warp float type a step's state and stages are held in: float32 under
+    "float32_state" (u, v and h − H₀: ``kernels.departure``), else float64."""
+    return wp.float32 if precision == "float32_state" else wp.float64
 
 
 def rounded(a: wp.array | None, dtype) -> wp.array | None:

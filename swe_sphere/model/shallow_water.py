@@ -33,7 +33,7 @@ from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
 from .limiter import LIMITERS, TracerLimiter
-from .precision import TendencyArrays, precision_dtype, reference_depth
+from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype
 
 TERMS = (
     "continuity",
@@ -150,8 +150,13 @@ class ShallowWater:
         unique-node vectors, global reductions); None: one over the whole grid.
         Its ``backend`` (``core.backend``) is the model's ``backend``, the device's
         choices decided once.
-    precision : "float64" (default) or "float32": the float type the tendency and the ∇⁴ are
-        computed in (``model.precision``: the state, its updates and every sum stay float64).
+    precision : "float64" (default), "float32" or "float32_state": the float type the tendency
+        and the ∇⁴ are computed in (``model.precision``: under "float32" the state, its updates
+        and every sum stay float64; under "float32_state" an explicit Runge–Kutta step holds its
+        state and stages in float32 too, ``state_dtype``: ``model.precision``'s note).
+    compensated : under "float32_state", whether a step's float32 increment is added to the
+        float64 state in float64 (True, the default: compensated) or the state rounded to the
+        float32 one (False; ``kernels.departure``); unread otherwise.
     depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
         (no shift); ``from_case`` gives the midpoint of its initial depth's extremes.
     tracers : K ≥ 0 passive tracers (``from_scene``: the scene's [tracers]), carried as their
@@ -211,6 +216,7 @@ class ShallowWater:
         topology=None,
         forcing=None,
         precision="float64",
+        compensated=True,
         depth=None,
         tracers=0,
         limiter="none",
@@ -270,6 +276,7 @@ class ShallowWater:
         self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
         self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
         self.precision = precision
+        self.state_dtype, self.compensated = state_dtype(precision), bool(compensated)
         # what the tendency kernels read and write, in the precision's float type
         depth = 0.0 if depth is None else number_argument("depth", depth, "m")
         self.tendency_arrays = TendencyArrays.of(
@@ -333,6 +340,7 @@ class ShallowWater:
             "element_filter": scene.element_filter,
         }
         options.setdefault("precision", scene.precision)
+        options.setdefault("compensated", scene.compensated)
         options.setdefault("tracers", len(scene.tracers))
         options.setdefault("limiter", scene.tracer_limiter)
         options.setdefault("tracer_hyperviscosity", scene.tracer_hyperviscosity)
@@ -362,17 +370,18 @@ class ShallowWater:
         launches, ops = [], self.operators
         forced = self.forcing is not None and "forcing" in named
         K = self.tracers if "continuity" in terms else 0  # the tracers ride the continuity
+        departed = x.dtype is not f64  # a float32 state's h − H₀ (``precision.state_dtype``)
         if terms:
             forcing = t.forcing if t.forcing is not None else t.D[0:2]  # read only with topography
             args = [x, t.D, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
             for run in runs:
                 if ops.per_element:
-                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype, K)
-                    h0 = operators.row_type(self.grid.np)(t.depth)
+                    kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype, K, departed)
+                    h0 = operators.row_type(self.grid.np, x.dtype)(t.depth)
                     inputs = [*map(ops.as_rows, args), self.g, h0, t.dvv_rows, ops.as_rows(tend)]
                     launches.append(self.launches.elements(kernel, inputs, run))
                 else:
-                    kernel = tendencies.tendency(terms, ops.static_np, not forced, t.dtype, K)
+                    kernel = tendencies.tendency(terms, ops.static_np, not forced, t.dtype, K, departed)
                     inputs = [*args, t.dvv, self.grid.np, self.g, t.depth, tend]
                     launches.append(self.launches.nodes(kernel, self.N, inputs, elements=run))
         if forced:

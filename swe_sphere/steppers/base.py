@@ -203,10 +203,11 @@ class Stepper(Described):
 
 
 # -- what a stepper's implementation builds on: its work arrays, its history's entries --------------
-def work_array(stepper: Stepper) -> wp.array:
-    """A (rows, N) float64 array of zeros on ``stepper``'s device, a row for each of the model's
-    state's (3 and its tracers'): a stage's, or a history's."""
-    return wp.zeros((stepper.model.rows, stepper.N), dtype=f64, device=stepper.model.topology.device)
+def work_array(stepper: Stepper, dtype=f64) -> wp.array:
+    """A (rows, N) array of zeros of ``dtype`` (float64, or a float32 state's: ``ExplicitRK``) on
+    ``stepper``'s device, a row for each of the model's state's (3 and its tracers'): a stage's,
+    or a history's."""
+    return wp.zeros((stepper.model.rows, stepper.N), dtype=dtype, device=stepper.model.topology.device)
 
 
 def device_counts(stepper: Stepper) -> dict:

@@ -48,6 +48,9 @@ class Described:
     # why the stepper cannot step a float32 tendency (a scene's numerics.precision, refused in one
     # line by ``config.resolve.refuse_precision``); None: it can
     float32_refusal: str | None = None
+    # why the stepper cannot carry a float32 state (numerics.precision = "float32_state"; refused
+    # likewise); None: it can (``runge_kutta.ExplicitRK``)
+    float32_state_refusal: str | None = "its stages and updates are written in float64 only"
     # why the stepper cannot carry passive tracers (a scene's [tracers], refused in one line by
     # ``config.resolve.resolve_tracers``); None: it can (its stages combine whole states, every row)
     tracers_refusal: str | None = "its step is written for u, v and h alone"

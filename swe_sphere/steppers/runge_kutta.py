@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from ..core.constants import DAY
-from ..kernels import blas
+from ..kernels import blas, departure
 from ..model.helmholtz import HelmholtzOptions
 from ..model.launches import Update
 from .base import Stepper, StepStats, device_counts, work_array
@@ -73,10 +73,17 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     stored, and the bits are those of storing F and combining after (ssprk3's and
     kgu35's combinations are their Shu–Osher forms; RK4's take one buffer and one
     combination fewer than its accumulator form).
+
+    Under the model's ``precision = "float32_state"`` the stages run on a float32 state y
+    (u, v, h − H₀: ``kernels.departure.to_departure`` of x at the step's start) in float32
+    buffers, and the step's end gives y back to x (``add_increment``, compensated, or
+    ``from_departure``: the model's ``compensated``) before the ∇⁴, which acts on x as under
+    "float32".
     """
 
     explicit = capturable = variable_dt = differentiable = True
     tracers_refusal = None  # its stages combine whole states: the tracers' rows ride them
+    float32_state_refusal = None  # its stages are the model's combinations, of any float type
 
     def table(self) -> Table:
         """The checked table this stepper steps: a built-in's, its ``name``'s (``explicit_steppers``)."""
@@ -87,7 +94,10 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         table = self.table()
         estimate = table.estimate
         buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
-        self._buffers = {name: work_array(self) for name in buffers}
+        dtype = model.state_dtype
+        self._buffers = {name: work_array(self, dtype) for name in buffers}
+        # the float32 state the stages step (None: they step x itself)
+        self._y = None if dtype is f64 else work_array(self, dtype)
         self._x = None
         self._carried = None  # ``carry_last_stage``: the FSAL stage's weight d_s in the estimate
         self._ahead = None  # the Δt whose first stage the last step's FSAL evaluation wrote (None: not written)
@@ -120,10 +130,10 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         before, so it holds the ∇⁴ step's effect on F too. Returns whether it does: not for a
         table that is not FSAL, nor with a time-dependent forcing (the FSAL evaluation's time
         would be t(n) + Δt(n) rather than the next step's rebased t0 + steps·Δt, another
-        rounding)."""
+        rounding), nor on a float32 state (its step's end is the conversion back to x)."""
         if self._carried is not None:
             return True
-        if not self.fsal() or "forcing" in self.model.terms:
+        if not self.fsal() or "forcing" in self.model.terms or self._y is not None:
             return False
         t = self.table()
         s, d = len(t.b_E), t.estimate[0]
@@ -182,16 +192,26 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     def _dt_changed(self):
         self._x = None  # the stages' coefficients made again with the new Δt (the model's launches take them in place)
 
+    def _departed(self, x, kernel) -> None:
+        """The float32 state's conversion ``kernel`` (``kernels.departure``) between it and x."""
+        pair = (x, self._y) if kernel is departure.to_departure else (self._y, x)
+        self.model.pointwise(kernel, pair[0], f64(self.model.tendency_arrays.depth), pair[1])
+
     def advance(self, x):
-        if self._x is not x:
-            self._record(x)
+        y = x if self._y is None else self._y  # the state the stages step
+        if self._x is not y:
+            self._record(y)
         limiter = self.model.limiter  # the tracers' (a scene's tracers.limiter): the step's start's bounds
         if limiter is not None:
             limiter.bound(x)
         if self._carried is None:
+            if y is not x:
+                self._departed(x, departure.to_departure)
             for c, arg, updates in self._stages:
                 self._at(c)
                 self.model.rhs_update(arg, updates)
+            if y is not x:
+                self._departed(x, departure.add_increment if self.model.compensated else departure.from_departure)
             self._hyperviscosity(x)
             if limiter is not None:
                 limiter.apply(x)

@@ -45,9 +45,12 @@ def test_float32_from_an_override_a_keyword_a_table_and_a_file(tmp_path):
     ("kw", "words"),
     [
         ({"overrides": {"numerics.precision": "float16"}}, "numerics.precision must be one of float64, float32"),
-        ({"precision": "double"}, "numerics.precision must be one of float64, float32 (got 'double'"),
+        ({"precision": "double"}, "numerics.precision must be one of float64, float32, float32_state (got 'double'"),
         ({"overrides": {"numerics.precision": 32}}, "numerics.precision must be str (got 32)"),
-        ({"overrides": {"numerics.dtype": "float32"}}, "unknown key numerics.dtype in scene (known: precision)"),
+        (
+            {"overrides": {"numerics.dtype": "float32"}},
+            "unknown key numerics.dtype in scene (known: precision, compensated)",
+        ),
         (
             {"precision": "float32", "overrides": {"numerics.precision": "half"}},
             "numerics.precision = 'half': must be one of float64, float32",
@@ -86,3 +89,31 @@ def test_gradients_stay_float64():
     scene = load_scene("tc2_steady", ne=2, stepper="rk4", precision="float32")
     with pytest.raises(ArgumentError, match="scene.precision = 'float32': gradients stay float64"):
         scene_model(scene)
+
+
+def test_the_float32_state_is_carried_by_the_explicit_runge_kutta_steppers_alone():
+    """``precision = "float32_state"``: a step's state and stages in float32, which only the
+    explicit Runge-Kutta engine carries (``Described.float32_state_refusal``): the others refused
+    in one line naming the value and the stepper, and so is step control (its estimate is read in
+    float64); ``numerics.compensated`` read with it, true by default and left out of the record."""
+    carrying = sorted(name for name, cls in STEPPERS.items() if cls.float32_state_refusal is None)
+    assert {"rk4", "ssprk3", "kgu35", "rk43"} <= set(carrying) and "leapfrog" not in carrying
+    for name in carrying:
+        assert load_scene("tc2_steady", ne=2, stepper=name, precision="float32_state").precision == "float32_state"
+    for name in ("leapfrog", "semi_implicit", "imex", "fbrk32", "implicit"):
+        with pytest.raises(SceneError) as err:
+            load_scene("tc2_steady", ne=2, stepper=name, precision="float32_state")
+        assert f'numerics.precision = "float32_state" with stepper {name}: ' in str(err.value)
+        assert "\n" not in str(err.value)
+    with pytest.raises(SceneError, match='"float32_state" with step control'):
+        load_scene(
+            "tc2_steady",
+            ne=2,
+            stepper="rk43",
+            precision="float32_state",
+            overrides={"time.control": "error", "time.rtol": 1e-6},
+        )
+    scene = load_scene("tc2_steady", ne=2, precision="float32_state")
+    assert scene.compensated and "compensated" not in scene.as_dict()
+    plain = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.compensated": False})
+    assert not plain.compensated and plain.as_dict()["compensated"] is False

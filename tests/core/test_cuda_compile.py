@@ -7,7 +7,7 @@ found, not listed: every ``wp.Kernel`` defined at module level in
 ``swe_sphere.kernels``'s submodules, plus every project kernel launched while
 each bundled scene's model (both layouts: per node, CUDA's default, and per
 element; float64 and float32, its tendency and ∇⁴) takes two steps of its stepper on ne = 2 np = 4 on
-the CPU, every
+the CPU, the float32 state (``float32_state``) stepped by rk4, every
 stepper (its solvers are the same on every device) on the scene
 with the most terms, the ∇⁴ with ν_div ≠ ν and the tensor (both precisions) and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
@@ -176,6 +176,15 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         model = ShallowWater.from_case(grid, flow, ["continuity", "forcing"], per_element=per_element, tracers=1)
         u, v, h = flow.initial(grid.lat, grid.lon)
         make_stepper("ssprk3", model, 720.0).step(model.new_state(u, v, h, masses=h[None]))
+    # the float32 state ("float32_state"): its conversions, the tendency of the departed state and
+    # the stages' float32 combinations, both layouts, compensated and not
+    for per_element in (False, True):
+        for compensated in (True, False):
+            model = ShallowWater.from_scene(
+                tc5, grid, per_element=per_element, precision="float32_state", compensated=compensated
+            )
+            x = model.new_state(*np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
+            make_stepper("rk4", model, tc5.dt).step(x)
     ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
@@ -305,6 +314,12 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4" in keys
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4__q2" in keys
     assert "tendency__continuity__np4__q1" in keys  # the forced, unweighted tendency of the transport tests
+    departed = "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass"
+    for key in (departed + "__np4__departed_float32", departed + "__departed_float32"):
+        assert key in keys, key  # the float32 state's tendency, per node and per element
+    for key in ("to_departure", "add_increment", "from_departure"):
+        assert key in keys, key
+    assert any(k.key.endswith("__state_float32") for k in launched)  # the float32 stages' combinations
     plain_dss = {
         k.module.name
         for k in launched

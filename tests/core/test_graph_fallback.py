@@ -23,8 +23,8 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core import runtime
 from swe_sphere.core.backend import Backend
 from swe_sphere.core.constants import DAY
+from swe_sphere.members import units
 from swe_sphere.model.helmholtz import HelmholtzCG
-from swe_sphere.simulation import build
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import ON_CUDA, cli_main, cli_one_line, one_line
@@ -276,7 +276,7 @@ def test_the_graph_mode_from_cli_environment_and_python(tmp_path, monkeypatch, c
 
 
 class FakeCuda:
-    """What ``build.check_memory`` reads of a CUDA device."""
+    """What ``members.units.check_memory`` reads of a CUDA device."""
 
     is_cuda, is_cpu = True, False
 
@@ -294,10 +294,10 @@ def test_memory_is_checked_on_the_device_that_runs(monkeypatch):
     need = runtime.run_bytes(30, 4, scene.stepper)
     monkeypatch.setattr(runtime, "available_memory", lambda: need // 2)
     with pytest.raises(runtime.ResourceError, match="of memory; .* is available"):
-        build.check_memory(scene, None, Backend.of("cpu"))
+        units.check_memory(scene, None, Backend.of("cpu"))
     monkeypatch.setattr(wp, "get_device", lambda d=None: FakeCuda(2 * need, 4 * need))
-    build.check_memory(scene, None, Backend.of("cuda"))  # the host's half is not the GPU's
+    units.check_memory(scene, None, Backend.of("cuda"))  # the host's half is not the GPU's
     monkeypatch.setattr(runtime, "available_memory", lambda: 1 << 50)
     monkeypatch.setattr(wp, "get_device", lambda d=None: FakeCuda(need // 2, 4 * need))
     with pytest.raises(runtime.ResourceError, match=r"of GPU memory; .* free of .* on cuda"):
-        build.check_memory(scene, None, Backend.of("cuda"))
+        units.check_memory(scene, None, Backend.of("cuda"))

@@ -18,8 +18,8 @@ import xarray as xr
 
 from swe_sphere.cli import main
 from swe_sphere.config.scene import load_scene
+from swe_sphere.members import units
 from swe_sphere.model.shallow_water import ShallowWater
-from swe_sphere.simulation import build
 from swe_sphere.simulation.simulation import Simulation
 from swe_sphere.steppers.initialization import DigitalFilter, digital_filter
 from swe_sphere.studies.sweep import Sweep, start_state
@@ -131,8 +131,8 @@ def test_run_file_records_the_start_and_a_restart_does_not_redo_it(tmp_path, cap
     the header and summary say so; continued from its restart file the run is bitwise
     the uninterrupted one and the filter is not run again."""
     calls = []
-    real = build.digital_filter
-    monkeypatch.setattr(build, "digital_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = units.digital_filter
+    monkeypatch.setattr(units, "digital_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
     args = [
         "run",
         "tc5_mountain",
@@ -182,8 +182,8 @@ def test_sweep_filters_once_and_every_run_starts_there(tmp_path, monkeypatch):
     """A 2-stepper x 2-dt sweep (and its reference run and warm-ups) on TC5 ne2: one
     filter, its state kept in runs/, every run tagged; a second sweep reads it back."""
     calls = []
-    real = build.digital_filter
-    monkeypatch.setattr(build, "digital_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = units.digital_filter
+    monkeypatch.setattr(units, "digital_filter", lambda *a, **k: calls.append(1) or real(*a, **k))
     over = {"case.initialization": "dfi", "dfi.cutoff_hours": 6.0, "dfi.span_hours": 12.0}
     scenes = {s: load_scene("tc5_mountain", ne=2, days=0.25, stepper=s, overrides=over) for s in ("rk4", "ssprk3")}
     base = scenes["rk4"]

@@ -7,52 +7,115 @@ Each tracer's mixing ratio q = hq / h in an element is moved, keeping the elemen
 [q_min, q_max] of the element and its neighbours at the step's start: values beyond a bound are
 clipped to it and the mass they held spread over the nodes still inside, in proportion to c,
 until no mass is left over (a bound the element's mean lies beyond is moved to the mean: the
-problem's only feasible point). Dim nelem; ``offset`` counts elements.
+problem's only feasible point). ``limit_stage`` limits an explicit stage's element-local values
+before their DSS (HOMME's ``euler_step``), ``limit_element`` an assembled state's. Dim nelem;
+``offset`` counts elements.
 """
 
+import functools
+
 import warp as wp
+
+from .dss import Copies, copy_value
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def element_bounds(x: wp.array2d(dtype=f64), npp: int, bounds: wp.array2d(dtype=f64), offset: int):
-    """bounds[2k], bounds[2k + 1] (nelem) = min, max over the element of tracer k's q = x[3 + k]
-    / x[2]; ``npp`` = np² nodes an element."""
-    e = wp.tid() + offset
-    base = e * npp
-    for k in range(x.shape[0] - 3):
-        lo = x[3 + k, base] / x[2, base]
-        hi = lo
+def element_bounds(
+    x: wp.array2d(dtype=f64), npp: int, lo: wp.array2d(dtype=f64), hi: wp.array2d(dtype=f64), offset: int
+):
+    """lo[k], hi[k] (K, N) at each node of an element = the least and greatest over the element
+    of tracer k's q = x[3 + k] / x[2]; ``npp`` = np² nodes an element."""
+    base = (wp.tid() + offset) * npp
+    for k in range(lo.shape[0]):
+        least = x[3 + k, base] / x[2, base]
+        most = least
         for i in range(1, npp):
             q = x[3 + k, base + i] / x[2, base + i]
-            lo = wp.min(lo, q)
-            hi = wp.max(hi, q)
-        bounds[2 * k, e] = lo
-        bounds[2 * k + 1, e] = hi
-
-
-@wp.kernel
-def neighbour_bounds(
-    bounds: wp.array2d(dtype=f64), table: wp.array2d(dtype=wp.int32), npp: int, out: wp.array2d(dtype=f64), offset: int
-):
-    """out = ``bounds`` over the element and every element sharing a node with it: rows 2k the
-    least, 2k + 1 the greatest (``table``: the DSS's copies of each node, −1-padded, all local)."""
-    e = wp.tid() + offset
-    base = e * npp
-    for r in range(bounds.shape[0]):
-        v = bounds[r, e]
+            least = wp.min(least, q)
+            most = wp.max(most, q)
         for i in range(npp):
-            for j in range(table.shape[1]):
-                c = table[base + i, j]
-                if c >= 0:
-                    b = bounds[r, c / npp]
-                    if r % 2 == 0:
-                        v = wp.min(v, b)
-                    else:
-                        v = wp.max(v, b)
-        out[r, e] = v
+            lo[k, base + i] = least
+            hi[k, base + i] = most
+
+
+@functools.cache
+def neighbour_bounds(rows: int, copies: int, ghosts: bool, upper: bool):
+    """The kernel (b, d, npp, out, offset): out[2k (+1 if ``upper``), e] = the least (greatest) of
+    b[k] (``rows`` = K, N: ``element_bounds``' lo or hi) over every copy of element e's nodes, its
+    own and those of the elements sharing a node with it, another rank's read from d's ghosts
+    (``dss.Copies``, ``copies`` its table's columns; b exchanged first where ``ghosts``): a min
+    or max, so the same bits on any ranks. Dim nelem."""
+    R, C, G, U = int(rows), int(copies), bool(ghosts), bool(upper)
+    value = copy_value(R, False, G)
+
+    def kernel(b: wp.array2d(dtype=f64), d: Copies, npp: int, out: wp.array2d(dtype=f64), offset: int):
+        e = wp.tid() + offset
+        base = e * npp
+        for k in range(R):
+            v = b[k, base]
+            for i in range(npp):
+                for j in range(C):
+                    c = d.table[base + i, j]
+                    if c >= 0:
+                        if wp.static(U):
+                            v = wp.max(v, value(b, d, c, k))
+                        else:
+                            v = wp.min(v, value(b, d, c, k))
+            out[2 * k + wp.static(int(U)), e] = v
+
+    kernel.__qualname__ = kernel.__name__ = f"neighbour_bounds__{'max' if U else 'min'}{'__ghosts' if G else ''}"
+    return wp.kernel(kernel, enable_backward=False, module="unique")
+
+
+@wp.func
+def limit_into(
+    out: wp.array2d(dtype=f64),
+    k: int,
+    base: int,
+    npp: int,
+    c: wp.array(dtype=f64),
+    qmin: f64,
+    qmax: f64,
+    iterations: int,
+    tol: f64,
+):
+    """Limit q = out[k] at the element's nodes base.. base + npp − 1 into [qmin, qmax] keeping
+    Σ c q (c the nodes' mass weights spheremp·h): at most ``iterations`` passes of clipping and
+    spreading, done when the mass left over is ≤ ``tol`` of the element's (the module docstring)."""
+    mass = f64(0.0)
+    total = f64(0.0)
+    for p in range(base, base + npp):
+        mass += c[p] * out[k, p]
+        total += c[p]
+    lo = wp.min(qmin, mass / total)  # the mean lies within the bounds, or is one
+    hi = wp.max(qmax, mass / total)
+    it = int(0)  # noqa: UP018 (a dynamic int: Warp keeps a bare literal constant)
+    while it < iterations:
+        it += 1
+        extra = f64(0.0)  # the mass clipped off (> 0: above hi), to spread
+        for p in range(base, base + npp):
+            q = out[k, p]
+            if q > hi:
+                extra += (q - hi) * c[p]
+                out[k, p] = hi
+            elif q < lo:
+                extra -= (lo - q) * c[p]
+                out[k, p] = lo
+        if wp.abs(extra) <= tol * wp.abs(mass):
+            it = iterations
+        else:
+            room = f64(0.0)  # the weight of the nodes that can take it
+            for p in range(base, base + npp):
+                q = out[k, p]
+                if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
+                    room += c[p]
+            for p in range(base, base + npp):
+                q = out[k, p]
+                if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
+                    out[k, p] = q + extra / room
 
 
 @wp.kernel
@@ -63,56 +126,71 @@ def limit_element(
     npp: int,
     iterations: int,
     tol: f64,
+    c: wp.array(dtype=f64),
     out: wp.array2d(dtype=f64),
     offset: int,
 ):
-    """out[k] = h·q̃ of tracer k, q̃ its q = x[3 + k] / x[2] limited into [bounds[2k, e],
-    bounds[2k + 1, e]] keeping Σ c q (c = spheremp·h) (module docstring): at most ``iterations``
-    passes of clipping and spreading, done when the mass left over is ≤ ``tol`` of the element's."""
+    """out[k] = h·q̃ of tracer k of the assembled state x, q̃ its q = x[3 + k] / x[2] limited into
+    [bounds[2k, e], bounds[2k + 1, e]] keeping Σ c q (c = spheremp·h, written into ``c``)."""
     e = wp.tid() + offset
     base = e * npp
+    for p in range(base, base + npp):
+        c[p] = spheremp[p] * x[2, p]
+        for k in range(out.shape[0]):
+            out[k, p] = x[3 + k, p] / x[2, p]
     for k in range(out.shape[0]):
-        qmin = bounds[2 * k, e]
-        qmax = bounds[2 * k + 1, e]
-        mass = f64(0.0)
-        total = f64(0.0)
-        for i in range(npp):
-            p = base + i
-            c = spheremp[p] * x[2, p]
-            q = x[3 + k, p] / x[2, p]
-            out[k, p] = q
-            mass += c * q
-            total += c
-        qmin = wp.min(qmin, mass / total)  # the mean lies within the bounds, or is one
-        qmax = wp.max(qmax, mass / total)
-        it = int(0)  # noqa: UP018 (a dynamic int: Warp keeps a bare literal constant)
-        while it < iterations:
-            it += 1
-            extra = f64(0.0)  # the mass clipped off (> 0: above qmax), to spread
-            for i in range(npp):
-                p = base + i
-                c = spheremp[p] * x[2, p]
-                q = out[k, p]
-                if q > qmax:
-                    extra += (q - qmax) * c
-                    out[k, p] = qmax
-                elif q < qmin:
-                    extra -= (qmin - q) * c
-                    out[k, p] = qmin
-            if wp.abs(extra) <= tol * wp.abs(mass):
-                it = iterations
-            else:
-                room = f64(0.0)  # the weight of the nodes that can take it
-                for i in range(npp):
-                    p = base + i
-                    q = out[k, p]
-                    if (extra > f64(0.0) and q < qmax) or (extra < f64(0.0) and q > qmin):
-                        room += spheremp[p] * x[2, p]
-                for i in range(npp):
-                    p = base + i
-                    q = out[k, p]
-                    if (extra > f64(0.0) and q < qmax) or (extra < f64(0.0) and q > qmin):
-                        out[k, p] = q + extra / room
-        for i in range(npp):
-            p = base + i
+        limit_into(out, k, base, npp, c, bounds[2 * k, e], bounds[2 * k + 1, e], iterations, tol)
+        for p in range(base, base + npp):
             out[k, p] = out[k, p] * x[2, p]
+
+
+@functools.cache
+def limit_stage(weighted: bool, first: int = 0):
+    """The kernel limiting an explicit stage's element-local values before their DSS (HOMME's
+    ``euler_step``: the limiter on Qtens, then the DSS): the stage's update out = a₀·s₀ + a₁·s₁ +
+    a₂·F (``ShallowWater.rhs_update``), F = M⁻¹DSS(the tendency), taken element by element as
+    v = a₀·s₀ + a₁·s₁ + a₂·F_e with F_e the element's own tendency (tend / mass if ``weighted``:
+    tend = spheremp·F_e) at its nodes, whose mass-weighted DSS is the update; out[k] = h·q̃ of
+    tracer k, q̃ its q = v_k / h limited into its bounds keeping Σ c q (c = spheremp·h, written
+    into ``c``). The DSS of out then takes the stage's values: at a node a convex combination of
+    its copies' q̃ (weights spheremp·h of each, h > 0). h = v[2], v_k = v[3 + k]: tend's rows are
+    the state's from ``first`` (0: the tendency's; 2: the ∇⁴'s of h and the tracers alone,
+    ``model.hyperviscosity.Hyperviscosity.build_tracers``). Arguments: a (vec3), s₀, s₁ (rows, N;
+    a₁ = 0: s₁ unread but any), tend, mass, spheremp, bounds, npp, iterations, tol, c, hv (N: h
+    written), out (K, N), offset."""
+    W, F = bool(weighted), int(first)
+
+    def kernel(
+        a: wp.vec3d,
+        s0: wp.array2d(dtype=f64),
+        s1: wp.array2d(dtype=f64),
+        tend: wp.array2d(dtype=f64),
+        mass: wp.array(dtype=f64),
+        spheremp: wp.array(dtype=f64),
+        bounds: wp.array2d(dtype=f64),
+        npp: int,
+        iterations: int,
+        tol: f64,
+        c: wp.array(dtype=f64),
+        hv: wp.array(dtype=f64),
+        out: wp.array2d(dtype=f64),
+        offset: int,
+    ):
+        e = wp.tid() + offset
+        base = e * npp
+        for p in range(base, base + npp):
+            r = f64(1.0)
+            if wp.static(W):
+                r = f64(1.0) / mass[p]
+            h = a[0] * s0[2, p] + a[1] * s1[2, p] + a[2] * (tend[wp.static(2 - F), p] * r)
+            c[p] = spheremp[p] * h
+            hv[p] = h
+            for k in range(out.shape[0]):
+                out[k, p] = (a[0] * s0[3 + k, p] + a[1] * s1[3 + k, p] + a[2] * (tend[wp.static(3 - F) + k, p] * r)) / h
+        for k in range(out.shape[0]):
+            limit_into(out, k, base, npp, c, bounds[2 * k, e], bounds[2 * k + 1, e], iterations, tol)
+            for p in range(base, base + npp):
+                out[k, p] = out[k, p] * hv[p]
+
+    kernel.__qualname__ = kernel.__name__ = "limit_stage" + ("__mass" if W else "") + (f"__from{F}" if F else "")
+    return wp.kernel(kernel, enable_backward=False, module="unique")

@@ -1,4 +1,4 @@
-"""The passive tracers' ∇⁴ (``model.hyperviscosity.Hyperviscosity.apply_tracers``): a scalar
+"""The passive tracers' ∇⁴ (``model.hyperviscosity.Hyperviscosity.build_tracers``): a scalar
 ∇⁴ of each tracer alone, without the wind's three Cartesian fields (HOMME applies its tracers'
 biharmonic to the tracer mass alone: ``biharmonic_wk_scalar`` in ``advance_hypervis_scalar``).
 
@@ -27,29 +27,34 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.kernel
 def tracer_surface(
-    x: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), qhs: wp.array2d(dtype=f64), block: int, offset: int
+    x: wp.array2d(dtype=f64),
+    row: int,
+    hs: wp.array(dtype=f64),
+    qhs: wp.array2d(dtype=f64),
+    block: int,
+    offset: int,
 ):
-    """qhs[k] = (hq / h)·hs (m) of each tracer k (hq = x[3 + k], h = x[2]): q·hs, the surface term
-    its ∇⁴ adds to hq (hs itself, to the bit, where hq = h), fixed over an ∇⁴ application as the
-    depth's hs is. Dim N/block."""
+    """qhs[k] = (hq / h)·hs (m) of each field k of x's rows ``row``.. (hq = x[row + k], h = x[2]):
+    q·hs, the surface term its ∇⁴ adds to hq (hs itself, to the bit, where hq = h: the depth's
+    own row), fixed over an ∇⁴ application as the depth's hs is. Dim N/block."""
     start = (wp.tid() + offset) * block
     for p in range(start, start + block):
         for k in range(qhs.shape[0]):
-            qhs[k, p] = x[3 + k, p] / x[2, p] * hs[p]
+            qhs[k, p] = x[row + k, p] / x[2, p] * hs[p]
 
 
 @functools.cache
-def tracer_laplacian(first: bool, np_: int):
+def tracer_laplacian(first: bool, np_: int, row: int = 3):
     """c · the weak Laplacian −Σ ∂ᵀ(G ∇_ref f) of each tracer's field f into L (K, ·), HOMME's
     ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric G, as
     ``hyperviscosity.laplacian_metric``: rows 0..2 of ``metric``). ``first``: f = q(h + hs) =
-    hq + q·hs of tracer k, hq row 3 + k of the state ``src`` (3 + K, ·) and q·hs row k of ``qhs``
-    (``tracer_surface``): the first Laplacian, ``c`` = ν_s; else f = row k of ``src`` (K, ·), the
+    hq + q·hs of field k, hq row ``row`` + k of the state ``src`` (3 + K, ·: from 3 the tracers, from
+    2 the depth and then the tracers) and q·hs row k of ``qhs`` (``tracer_surface``): the first Laplacian, ``c`` = ν_s; else f = row k of ``src`` (K, ·), the
     DSS'd first Laplacian Y₁: the second, ``c`` unread, ``metric`` the tensor ∇⁴'s where it has
     one. Arguments on GLL rows (``operators.row_vectors``): src, qhs (K, ·; read by the first
     alone), metric (4, ·), dvv (``operators.dvv_matrix``), c, L (K, ·) output, offset (in
     elements). Dim nelem. float64."""
-    NP, FIRST = int(np_), bool(first)
+    NP, FIRST, R = int(np_), bool(first), int(row)
     vec, mat = row_derivatives(NP)[:2]
     lap = weak_laplacian_rows(NP)
 
@@ -76,7 +81,7 @@ def tracer_laplacian(first: bool, np_: int):
             for j in range(NP):
                 q = base + j
                 if wp.static(FIRST):  # hq + q·hs: h + hs itself where hq = h
-                    F[j] = src[3 + k, q] + qhs[k, q]
+                    F[j] = src[wp.static(R) + k, q] + qhs[k, q]
                 else:
                     F[j] = src[k, q]
             Lk = lap(F, G11, G12, G22, dvv, dvvT, base)
@@ -86,5 +91,7 @@ def tracer_laplacian(first: bool, np_: int):
                 else:
                     L[k, base + j] = Lk[j]
 
-    kernel.__qualname__ = kernel.__name__ = f"tracer_laplacian__{'first' if FIRST else 'second'}"
+    kernel.__qualname__ = kernel.__name__ = f"tracer_laplacian__{'first' if FIRST else 'second'}" + (
+        "" if R == 3 or not FIRST else f"__row{R}"
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)

@@ -153,10 +153,11 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
     ("tc5_mountain", ["--stepper", "split_explicit", "--days", "0.1"]),  # the fast/slow split, its mean depth
     ("tc5_mountain", ["--stepper", "mri", "-s", "mri.method=mri_gark_erk33a", "--days", "0.1"]),  # L z in one pass
     ("tc4_forced_low", ["--days", "0.25"]),  # ssprk3 with the time-dependent forcing
-    (  # passive tracers: their rows in the tendency, the DSS and the stages, their ∇⁴ (q·hs), their q and masses
+    (  # passive tracers: their rows in the tendency, the DSS and the stages, their ∇⁴ (q·hs), their q and
+        # masses, the limiter (its neighbours' bounds exchanged)
         "galewsky",
         ["--stepper", "ssprk3", "--days", "0.1", "-s", 'tracers.names=["one", "marker"]']
-        + ["-s", 'tracers.initial=["constant", "latitude"]'],
+        + ["-s", 'tracers.initial=["constant", "latitude"]', "-s", 'tracers.limiter="optimization"'],
     ),
     ("tc7_era_july", ["--days", "0.1"]),  # a reanalysis start (ERA-Interim's July), synthesised at each rank's nodes
     ("tc5_mountain", ["--stepper", "kgu35", "--days", "0.1", "--precision", "float32"]),  # a float32 tendency

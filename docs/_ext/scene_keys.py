@@ -147,7 +147,7 @@ KEYS = {
     "tracers.names": ("none", "the tracers' names: distinct identifiers, each a variable of the run file (q, units 1)"),
     "tracers.limiter": (
         '"none"',
-        "the tracers' shape-preserving limiter: \"optimization\" (Guba et al. 2014, HOMME's limiter 8; one MPI rank)",
+        "the tracers' shape-preserving limiter: \"optimization\" (Guba et al. 2014, HOMME's limiter 8)",
     ),
     "tracers.hyperviscosity": (
         "true",

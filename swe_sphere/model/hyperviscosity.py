@@ -18,7 +18,9 @@ import warp as wp
 
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
-from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators, tracers
+from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators
+from ..kernels import tracers as tracers_k
+from .launches import Update
 from .precision import rounded
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
@@ -103,9 +105,14 @@ class Hyperviscosity:
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
         self._rkl_buffers: dict = {}  # RKL1's Y_{j−1} or Y_{j−2} beside x, by x's shape (``rkl1``)
-        # the tracers' ∇⁴ work arrays (``build_tracers``): q·hs, the first weak Laplacian, its DSS Y₁, the second
-        K = m.tracers
-        self._tracer_work = tuple(wp.zeros((K, N), dtype=f64, device=device) for _ in range(4)) if K else None
+        # the tracers' ∇⁴ (``build_tracers``): the state's rows it acts on from ``_tracer_row`` (with the
+        # limiter h's too, its element-local values the limiter's weights), its work arrays q·hs, the
+        # first weak Laplacian, its DSS Y₁, the second
+        self._tracer_row = 2 if m.limiter is not None else 3
+        rows = m.rows - self._tracer_row
+        self._tracer_work = (
+            tuple(wp.zeros((rows, N), dtype=f64, device=device) for _ in range(4)) if m.tracers else None
+        )
 
     def build(
         self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0), depth=None
@@ -441,54 +448,42 @@ class Hyperviscosity:
             self._plan = (dt, evaluations(self.nu_max * dt * self.biharmonic_radius(), self.model.hypervis_subcycle))
         return self._plan[1]
 
-    def apply_tracers(self, x: wp.array2d, dt: float) -> None:
-        """The tracers' ∇⁴ over dt (s) in place on their masses hq (rows 3.. of x, the model's
-        ``tracers``): ν_s ∇⁴ of q(h + hs), each tracer a scalar field alone (``build_tracers``:
-        ∫hq conserved, h's own arithmetic where hq = h), by the same plan of substeps or RKL1
-        stages as the dynamics' (ν_max's; ``apply`` with ``tracers``). Call it before ``apply``
-        (q is read from x's h, once: q·hs stays fixed over the application, ``kernels.tracers``'
-        ``tracer_surface``). Nothing with ν_s = 0 or without tracers."""
-        m = self.model
-        if m.tracers and m.nu_s != 0.0:
-            surface = [x, m.operators.hs, self._tracer_work[0]]
-            m.launches.replay(
-                ("hv_tracer_surface", x.ptr),
-                (x,),
-                lambda: [m.launches.pointwise(tracers.tracer_surface, None, surface)],
-            )
-            self.apply(x, dt, tracers=True)
-
     def build_tracers(self, src, out, prev, mode: str, c: tuple) -> list:
-        """Launches of one ∇⁴ evaluation of the tracers (rows 3.. of the states): Y₂ = M⁻¹DSS(L₂),
-        L₂ the weak Laplacian (the tensor's where the ∇⁴ has one) of Y₁ = M⁻¹DSS(L₁), L₁ = ν_s·the
-        weak Laplacian of hq + q·hs from ``src`` and the q·hs ``apply_tracers`` took
-        (``kernels.tracers.tracer_laplacian``; HOMME
-        ``biharmonic_wk_scalar``), then by ``mode`` with the coefficients ``c``: "add", out +=
+        """Launches of one ∇⁴ evaluation of the tracers (rows 3.. of the states), before the
+        depth's of the same substep or stage (``apply``): Y₂ = M⁻¹DSS(L₂), L₂ the weak Laplacian
+        (the tensor's where the ∇⁴ has one) of Y₁ = M⁻¹DSS(L₁), L₁ = ν_s·the weak Laplacian of
+        hq + q·hs from ``src`` and the q·hs ``apply`` took (``kernels.tracers.tracer_laplacian``;
+        HOMME ``biharmonic_wk_scalar``), then by ``mode`` with the coefficients ``c``: "add", out +=
         c₀·Y₂ (out = src); "euler", out = src + c₀·Y₂; "rkl", out = c₀·src + c₁·prev + c₂·Y₂ (an
-        RKL1 stage, c = (μ, ν, μ·coef)), as the second DSS sums (``Topology.dss_update``). out may
-        alias src and prev. The 4 launches (and the DSSs' exchanges) serve every tracer at once."""
+        RKL1 stage, c = (μ, ν, μ·coef)), as the second DSS sums (``Topology.dss_update``), or with
+        the model's limiter, limited before it (``limiter.TracerLimiter.stage``: q against h's own
+        element-local values, h's Laplacians computed beside the tracers' for them, so that q = 1
+        stays 1; h itself is left to the depth's ∇⁴). out may alias src and
+        prev. The launches (and the DSSs' exchanges) serve every tracer at once."""
         m = self.model
         ops, (qhs, L1, Y1, L2) = m.operators, self._tracer_work
         second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
-        dvv, rows = m.tendency_arrays.dvv_rows, ops.as_rows
-        s, o, p = src[3:], out[3:], prev[3:]
-        terms = (
-            ((c[0], s), (c[1], p), (c[2], None)) if mode == "rkl" else ((1.0, o if mode == "add" else s), (c[0], None))
-        )
-        np_ = m.grid.np
-        return [
+        dvv, rows, np_ = m.tendency_arrays.dvv_rows, ops.as_rows, m.grid.np
+        if mode == "rkl":
+            terms = ((c[0], src), (c[1], prev), (c[2], None))
+        else:
+            terms = ((1.0, out if mode == "add" else src), (c[0], None))
+        launches = [
             m.launches.elements(
-                tracers.tracer_laplacian(True, np_),
+                tracers_k.tracer_laplacian(True, np_, self._tracer_row),
                 [rows(src), rows(qhs), rows(self.hv_metric), dvv, m.nu_s, rows(L1)],
             ),
             *m.topology.dss(L1, False, Y1),
             m.launches.elements(
-                tracers.tracer_laplacian(False, np_), [rows(Y1), rows(qhs), rows(second), dvv, 1.0, rows(L2)]
+                tracers_k.tracer_laplacian(False, np_), [rows(Y1), rows(qhs), rows(second), dvv, 1.0, rows(L2)]
             ),
-            *m.topology.dss_update(L2, [(o, terms)], weighted=False),
         ]
+        if m.limiter is not None:  # HOMME limits the tracers' biharmonic with their transport (euler_step)
+            return [*launches, *m.limiter.stage(Update(out, terms), L2, True, first=2)]
+        sliced = tuple((a, None if a_src is None else a_src[3:]) for a, a_src in terms)
+        return [*launches, *m.topology.dss_update(L2, [(out[3:], sliced)], weighted=False)]
 
-    def apply(self, x: wp.array2d, dt: float, tracers: bool = False) -> None:
+    def apply(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
         n = ``substeps(dt)`` forward-Euler steps of x −= (dt/n) B x
         (B: ``operator``, ν ∇⁴ with ν, ν_div, ν_s)
@@ -504,19 +499,32 @@ class Hyperviscosity:
         exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
         up on day 4, as with forward Euler it does not. RKL1's P_s damps the
         interior of its interval to ≲ 0.3; the split is first order anyway.
-        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. ``tracers``: the tracers' ∇⁴
-        (``build_tracers``) by the same plan, in place of the dynamics' (``apply_tracers``)."""
+        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. With the model's tracers (and
+        ν_s ≠ 0, ``tracer_hyperviscosity``) each substep or stage is preceded by the tracers' own
+        (``build_tracers``: ν_s ∇⁴ of q(h + hs), each tracer a scalar field alone, ∫hq conserved,
+        h's arithmetic where hq = h), q·hs taken once before (``kernels.tracers.tracer_surface``,
+        q of x as it comes).
+        """
         m = self.model
         if self.nu_max == 0.0:
             return
+        tracers = bool(m.tracers) and m.nu_s != 0.0 and m.tracer_hyperviscosity
+        if tracers:
+            surface = [x, self._tracer_row, m.operators.hs, self._tracer_work[0]]
+            m.launches.replay(
+                ("hv_tracer_surface", x.ptr),
+                (x,),
+                lambda: [m.launches.pointwise(tracers_k.tracer_surface, None, surface)],
+            )
         n, rkl = self.plan(dt)
         if rkl:
             self.rkl1(x, dt, n, tracers)
             return
         coef = -dt / n
-        build = (lambda c: self.build_tracers(x, x, x, "add", c)) if tracers else (lambda c: self.build(x, c[0]))
         for _ in range(n):
-            m.launches.replay(("hv", tracers, x.ptr), (x,), build, (coef,))
+            if tracers:  # before the depth's substep, whose h the limiter's element-local values start from
+                m.launches.replay(("hv_tracers", x.ptr), (x,), lambda c: self.build_tracers(x, x, x, "add", c), (coef,))
+            m.launches.replay(("hv", x.ptr), (x,), lambda c: self.build(x, c[0]), (coef,))
 
     def rkl1(self, x: wp.array2d, dt: float, s: int, tracers: bool = False) -> None:
         """One s-stage RKL1 step (Meyer, Balsara & Aslam 2014, eqs. 10–11) of
@@ -526,20 +534,23 @@ class Hyperviscosity:
         ν dt λ ≤ s² + s. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
         convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
         (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
-        or x at the last stage (each read at its own node only). ``tracers`` as ``apply``'s."""
+        or x at the last stage (each read at its own node only). ``tracers``: each stage preceded by
+        the tracers' (``apply``'s)."""
         m = self.model
         if x.shape not in self._rkl_buffers:
             self._rkl_buffers[x.shape] = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
         def stage(src, out, prev, mode, mu=1.0, nu=0.0):
-            key = ("hv", tracers, mode, src.ptr, out.ptr, prev.ptr)
-            if tracers:  # the stage's coefficients as the tracers' update takes them (``build_tracers``)
+            key = ("hv", mode, src.ptr, out.ptr, prev.ptr)
+            if (
+                tracers
+            ):  # the tracers' stage before the depth's (``apply``), its coefficients as ``build_tracers`` takes them
                 build = lambda c: self.build_tracers(src, out, prev, mode, c)  # noqa: E731
-                m.launches.replay(key, (src, out, prev), build, (coef,) if mode == "euler" else (mu, nu, mu * coef))
-            else:
-                build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
-                m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
+                c = (coef,) if mode == "euler" else (mu, nu, mu * coef)
+                m.launches.replay(("hv_tracers", *key[1:]), (src, out, prev), build, c)
+            build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
+            m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
 
         prev, cur = x, self._rkl_buffers[x.shape]
         stage(x, cur, x, "euler")  # Y_1

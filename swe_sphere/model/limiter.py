@@ -1,13 +1,13 @@
 """The tracers' shape-preserving limiter of a ``ShallowWater`` model (a scene's ``tracers.limiter``):
 Guba, Taylor & St-Cyr (2014)'s optimisation-based limiter as HOMME applies it
-(``limiter_optim_iter_full``, ``limiter_option = 8``), on each element, then a DSS of the tracer
-masses (the kernels: ``kernels.limiter``)."""
+(``limiter_optim_iter_full``, ``limiter_option = 8``): on each explicit stage's element-local
+values before their DSS (HOMME's ``euler_step``), and on the assembled state after the ∇⁴ (the
+kernels: ``kernels.limiter``)."""
 
 from __future__ import annotations
 
 import warp as wp
 
-from ..core.errors import ArgumentError
 from ..kernels import limiter
 
 f64 = wp.float64
@@ -17,44 +17,69 @@ LIMITERS = ("none", "optimization")  # a scene's tracers.limiter
 
 class TracerLimiter:
     """The limiter of ``model``'s tracers (``model.tracers`` > 0): ``bound`` takes each element's
-    bounds from a state (its q's and its neighbours' extremes: the start of a step), ``apply``
-    limits a state's tracer masses into them, element by element keeping each element's tracer
-    mass, and assembles them by the mass-weighted DSS (a convex combination of the elements'
-    limited values: no new extremum; the integral kept). On one rank only (the neighbours' bounds
-    are not exchanged): ``ArgumentError`` (a ValueError) on several. Mass is kept to round-off, the bounds met to
-    ``tol`` of an element's mass after at most np² − 1 passes (HOMME's)."""
+    bounds from a state (its q's and its neighbours' extremes: the start of a step), ``stage``
+    limits a stage's element-local tracer values into them before their DSS, keeping each
+    element's tracer mass (``ShallowWater.rhs_update``'s ``limit``: the DSS of the limited values
+    is a convex combination of them at each node, no new extremum, the integral kept), ``apply``
+    an assembled state's likewise (the values after the ∇⁴, which is split from the stages).
+    Element-local, the neighbours' bounds exchanged as a min and a max: the same bits on any
+    ranks. Mass is kept to round-off, the bounds met to ``tol`` of an element's mass after at most
+    np² − 1 passes (HOMME's)."""
 
     tol = 1e-14
 
     def __init__(self, model):
-        if model.topology.distributed:
-            raise ArgumentError("tracers.limiter runs on one MPI rank (its neighbours' bounds are not exchanged)")
         self.model = m = model
         self.npp = npp = m.grid.np**2
-        nelem, K = m.N // npp, m.tracers
-        self.bounds = wp.zeros((2 * K, nelem), dtype=f64, device=m.device)
-        self.near = wp.zeros((2 * K, nelem), dtype=f64, device=m.device)  # over the neighbours too
-        self.work = wp.zeros((K, m.N), dtype=f64, device=m.device)
+        nelem, K, N, device = m.N // npp, m.tracers, m.N, m.device
+        self.lo, self.hi = (wp.zeros((K, N), dtype=f64, device=device) for _ in range(2))  # each element's own
+        self.near = wp.zeros((2 * K, nelem), dtype=f64, device=device)  # over the neighbours too: 2k least, 2k + 1 most
+        self.work = wp.zeros((K, N), dtype=f64, device=device)
+        self.weights, self.depth = (wp.zeros(N, dtype=f64, device=device) for _ in range(2))
 
     def bound(self, x: wp.array2d) -> None:
         """Each element's bounds of each tracer's q from state x (rows, N): the least and greatest
-        over it and the elements that share a node with it."""
+        over it and the elements that share a node with it, on this rank or another."""
         m = self.model
+        topo = m.topology
+        columns, ghosts = topo.table.shape[1], bool(len(topo.neighbours))
 
         def build():
-            return [
-                m.launches.elements(limiter.element_bounds, [x, self.npp, self.bounds]),
-                m.launches.elements(limiter.neighbour_bounds, [self.bounds, m.topology.table, self.npp, self.near]),
-            ]
+            launches = [m.launches.elements(limiter.element_bounds, [x, self.npp, self.lo, self.hi])]
+            for upper, b in ((False, self.lo), (True, self.hi)):
+                kernel = limiter.neighbour_bounds(m.tracers, columns, ghosts, upper)
+                launches += [*topo.exchange(b), m.launches.elements(kernel, [b, topo.dss_copies, self.npp, self.near])]
+            return launches
 
         m.launches.replay(("limiter_bounds", x.ptr), (x,), build)
+
+    def _limits(self) -> list:
+        """The limiting kernels' common arguments: the bounds, np², the passes, ``tol``, the weights."""
+        return [self.near, self.npp, self.npp - 1, f64(self.tol), self.weights]
+
+    def stage(self, update, tend, weighted: bool, first: int = 0) -> list:
+        """Launches of ``update``'s tracer rows (an ``Update`` out = Σ a·src + a_F·F of at most two
+        arrays and F once, F from the element-local ``tend``, spheremp·F where ``weighted``, its
+        rows the state's from ``first``: 0, the tendency; 2, the ∇⁴'s of h and the tracers): its
+        element-local values limited (``kernels.limiter.limit_stage``) and assembled by the
+        mass-weighted DSS into out[3:]. The caller runs the first launch before any other writes
+        the update's arrays' rows it reads, and the others after it."""
+        m = self.model
+        arrays = [(a, src) for a, src in update.terms if src is not None]
+        a = [a for a, _ in arrays] + [0.0] * (2 - len(arrays))
+        srcs = [src for _, src in arrays] + [update.out] * (2 - len(arrays))
+        flux = [a for a, src in update.terms if src is None]
+        kernel = limiter.limit_stage(weighted, first)
+        t = m.tendency_arrays
+        args = [wp.vec3d(*a, *flux), *srcs, tend, t.mass, m.spheremp, *self._limits(), self.depth, self.work]
+        return [m.launches.elements(kernel, args), *m.topology.dss(self.work, True, update.out[3:])]
 
     def apply(self, x: wp.array2d) -> None:
         """Limit x's tracer masses (rows 3..) in place into the bounds ``bound`` took last."""
         m = self.model
 
         def build():
-            args = [x, m.spheremp, self.near, self.npp, self.npp - 1, f64(self.tol), self.work]
+            args = [x, m.spheremp, *self._limits(), self.work]
             return [m.launches.elements(limiter.limit_element, args), *m.topology.dss(self.work, True, x[3:])]
 
         m.launches.replay(("limiter", x.ptr), (x,), build)

@@ -166,8 +166,9 @@ class ShallowWater:
         With the ∇⁴ each tracer mass takes ν_s ∇⁴ of q(h + hs) (``hyperviscosity``), unless
         ``tracer_hyperviscosity`` is False.
     limiter : "none" (default) or "optimization": the tracers' shape-preserving limiter
-        (``limiter.TracerLimiter``: Guba et al. 2014, HOMME's limiter 8), which a stepper applies
-        at the end of each step within the bounds of its start; one rank only.
+        (``limiter.TracerLimiter``: Guba et al. 2014, HOMME's limiter 8) within the bounds of a
+        step's start, which an explicit Runge–Kutta stepper applies to each stage's element-local
+        values before their DSS (``rhs_update``'s ``limit``) and to the state after the ∇⁴.
     tracer_hyperviscosity : True (default): the tracers take the ∇⁴ (``tracers`` above); False:
         none on them (q = 1 then drifts where the depth is damped; their masses are still kept).
 
@@ -282,11 +283,11 @@ class ShallowWater:
         self.tendency_arrays = TendencyArrays.of(
             dtype, self.operators, self.spheremp[:N], self.topo_forcing, depth, self.rows
         )
+        # the tracers' limiter (a scene's tracers.limiter); None: none
+        self.limiter = TracerLimiter(self) if self.tracers and limiter != "none" else None
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
         self.filter = None if element_filter is None else ElementFilter(self, *element_filter)  # a scene's [filter]
         self.bad_nodes = BadNodes(self)  # the check of a state for non-finite or dry nodes
-        # the tracers' limiter (a scene's tracers.limiter); None: none
-        self.limiter = TracerLimiter(self) if self.tracers and limiter != "none" else None
 
     @functools.cached_property
     def tend(self) -> wp.array2d:
@@ -406,11 +407,17 @@ class ShallowWater:
             launches.extend(self.topology.dss_at(rows(tend), not weighted, rows(out), part.nodes, part.copies))
         return launches
 
-    def _build_rhs_update(self, x, updates, named):
+    def _build_rhs_update(self, x, updates, named, limit=False):
         launches, lo, hi, weighted = self._build_tendency(x, named)
         groups = []  # (rows, [(out, terms)]): one DSS for each run of at most two updates of the same rows
         rest = []  # F is zero in the rows its terms do not write: there the arrays' combination alone
-        for out, terms, rows in updates:
+        limited = []  # the last update's tracer rows, limited before their DSS (``limit``)
+        if limit:
+            last = updates[-1]
+            if last.rows is not None or hi <= 3 or sum(src is None for _, src in last.terms) != 1:
+                raise ValueError("a limited update is of all rows, with tracers, and holds F once")
+            limited = self.limiter.stage(last, self.tendency_arrays.tend, weighted)
+        for n, (out, terms, rows) in enumerate(updates):
             if rows is None:
                 arrays = tuple((a, src) for a, src in terms if src is not None)
                 for r0, r1 in ((0, lo), (hi, self.rows)):
@@ -421,6 +428,8 @@ class ShallowWater:
                             )
                         rest.append(self.lincomb(out[r0:r1], ((a, src[r0:r1]) for a, src in arrays)))
             r0, r1 = (lo, hi) if rows is None else (rows.start, rows.stop)
+            if limited and n == len(updates) - 1:
+                r1 = 3  # its tracer rows: ``limited``
             if not lo <= r0 < r1 <= hi:
                 raise ValueError(f"an update of rows {r0}:{r1}, of which the terms {named} write only {lo}:{hi}")
             sliced = (out[r0:r1], tuple((a, None if src is None else src[r0:r1]) for a, src in terms))
@@ -428,9 +437,11 @@ class ShallowWater:
                 groups[-1][1].append(sliced)
             else:
                 groups.append(((r0, r1), [sliced]))
-        for (r0, r1), group in groups:
+        for k, ((r0, r1), group) in enumerate(groups):
+            if limited and k == len(groups) - 1:  # the limiter reads the last update's arrays before its DSS writes
+                launches.append(limited[0])
             launches.extend(self.topology.dss_update(self.tendency_arrays.tend[r0:r1], group, weighted=not weighted))
-        return launches + rest  # after the tendency, which may read their outputs
+        return launches + limited[1:] + rest  # after the tendency, which may read their outputs
 
     def set_time(self, t: float) -> None:
         """Set the model time t (s) at which ``rhs`` evaluates a time-dependent
@@ -478,7 +489,7 @@ class ShallowWater:
         key = ("rhs_part", id(part), *self.rhs_key(x, out, terms)[1:])
         self.launches.replay(key, (x, out, part), lambda: self._build_rhs(x, out, key[2], part))
 
-    def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None) -> None:
+    def rhs_update(self, x: wp.array2d, updates, terms: tuple | None = None, limit: bool = False) -> None:
         """F = F(x, t) as ``rhs`` computes it, not stored but written, as its DSS
         makes it, into linear combinations (an explicit stage's x + aΔt F with
         no pass of its own): for each ``Update(out, terms, rows)`` of ``updates``,
@@ -492,10 +503,16 @@ class ShallowWater:
         right as ``blas.axpby``/``axpbypcz``: the bits of ``rhs`` followed by
         those combinations. Recorded once per arrays, the coefficients launch
         arguments set in place (``LaunchRecorder.replay_updates``: a new Δt records nothing);
-        ValueError for rows F lacks; TypeError for an update that is not an ``Update``."""
+        ValueError for rows F lacks; TypeError for an update that is not an ``Update``.
+        ``limit``: the last update (of all rows, F in it once) a stage's state, its tracers' rows
+        limited before their DSS (``limiter.TracerLimiter.stage``; the model's limiter), read
+        by nothing after it."""
         terms, updates = self._rhs_terms(terms), check_updates(updates)
         self.launches.replay_updates(
-            ("rhs_update", terms, x.ptr), (x,), updates, lambda u: self._build_rhs_update(x, u, terms)
+            ("rhs_update", terms, x.ptr, bool(limit)),
+            (x,),
+            updates,
+            lambda u: self._build_rhs_update(x, u, terms, bool(limit)),
         )
 
     def rhs_kernels(self, x: wp.array2d, out: wp.array2d) -> list[str]:
@@ -515,11 +532,9 @@ class ShallowWater:
         (``hv.apply``: forward-Euler substeps or an RKL1 super-step, HOMME's
         ``advance_hypervis``), then the element filter once (``filter.apply``, a scene's
         [filter]; HOMME ``filter_P``); nothing without the term and the filter. The tracers'
-        masses first (``hv.apply_tracers``: ν_s ∇⁴ of q(h + hs), q read before h's ∇⁴), unless
-        ``tracer_hyperviscosity`` is False."""
+        masses each substep or stage after h's (``hv.apply``: ν_s ∇⁴ of q(h + hs), q read before
+        h's ∇⁴), unless ``tracer_hyperviscosity`` is False."""
         if self.hv is not None:
-            if self.tracer_hyperviscosity:
-                self.hv.apply_tracers(x, dt)
             self.hv.apply(x, dt)
         if self.filter is not None:
             self.filter.apply(x)

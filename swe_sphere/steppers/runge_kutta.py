@@ -188,6 +188,16 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
             )
             for c, arg, updates in self._form
         ]
+        # with the tracers' limiter, the stages whose last update writes the next stage's state (x at
+        # the last) from F: their tracers limited before the DSS (HOMME's euler_step), the others' not
+        # (a chained combination's partial sums are no state: ssprk3, rk4, kgu35 limit every stage)
+        states = [arg for _, arg, _ in self._stages[1:]] + [x]
+        self._limited = [
+            self.model.limiter is not None
+            and updates[-1].out is state
+            and sum(src is None for _, src in updates[-1].terms) == 1
+            for (_, _, updates), state in zip(self._stages, states, strict=True)
+        ]
 
     def _dt_changed(self):
         self._x = None  # the stages' coefficients made again with the new Δt (the model's launches take them in place)
@@ -207,9 +217,12 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         if self._carried is None:
             if y is not x:
                 self._departed(x, departure.to_departure)
-            for c, arg, updates in self._stages:
+            for (c, arg, updates), limit in zip(self._stages, self._limited, strict=True):
                 self._at(c)
-                self.model.rhs_update(arg, updates)
+                if limit:  # the stage's tracers limited before their DSS (a model with a limiter)
+                    self.model.rhs_update(arg, updates, limit=True)
+                else:
+                    self.model.rhs_update(arg, updates)
             if y is not x:
                 self._departed(x, departure.add_increment if self.model.compensated else departure.from_departure)
             self._hyperviscosity(x)

@@ -167,8 +167,9 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     step_adjoint(model, make_stepper("rk4", model, tc5.dt)).reverse(x, wp.clone(x))
     # passive tracers ([tracers]), which no bundled scene has: the tendency with their rows and
     # their ∇⁴ (q·hs in the surface's place), both layouts; the transport tests' prescribed wind
-    for per_element in (False, True):
-        model = ShallowWater.from_scene(tc5, grid, per_element=per_element, tracers=2, limiter="optimization")
+    for per_element in (False, True):  # the limiter's kernels, and the ∇⁴'s with it (h's row beside) and without
+        limiter = "optimization" if per_element else "none"
+        model = ShallowWater.from_scene(tc5, grid, per_element=per_element, tracers=2, limiter=limiter)
         u, v, h = tc5.make_case().initial(grid.lat, grid.lon)
         x = model.new_state(u, v, h, masses=np.stack([h, h]))
         make_stepper("rk4", model, tc5.dt).step(x)
@@ -303,10 +304,14 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "deformational_flow",
         "tracer_surface",
         "tracer_laplacian__first",
+        "tracer_laplacian__first__row2",
         "tracer_laplacian__second",
         "element_bounds",
-        "neighbour_bounds",
+        "neighbour_bounds__min",
+        "neighbour_bounds__max",
         "limit_element",
+        "limit_stage__mass",
+        "limit_stage__mass__from2",
         "axpbypcz",
         "dss",
     ):

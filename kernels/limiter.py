@@ -84,7 +84,9 @@ def limit_into(
 ):
     """Limit q = out[k] at the element's nodes base.. base + npp − 1 into [qmin, qmax] keeping
     Σ c q (c the nodes' mass weights spheremp·h): at most ``iterations`` passes of clipping and
-    spreading, done when the mass left over is ≤ ``tol`` of the element's (the module docstring)."""
+    spreading, done when the mass clipped is ≤ ``tol`` of the element's; that last is spread too
+    (a node then past its bound by that share at most: HOMME drops it, a mass loss of one sign
+    where a bound is met over wide areas, 2.8e-13 in 12 days of the transport test)."""
     mass = f64(0.0)
     total = f64(0.0)
     for p in range(base, base + npp):
@@ -105,13 +107,13 @@ def limit_into(
                 extra -= (lo - q) * c[p]
                 out[k, p] = lo
         if wp.abs(extra) <= tol * wp.abs(mass):
-            it = iterations
-        else:
-            room = f64(0.0)  # the weight of the nodes that can take it
-            for p in range(base, base + npp):
-                q = out[k, p]
-                if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
-                    room += c[p]
+            it = iterations  # the last spread, of at most tol of the mass: kept, not dropped (a bias else)
+        room = f64(0.0)  # the weight of the nodes that can take it
+        for p in range(base, base + npp):
+            q = out[k, p]
+            if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
+                room += c[p]
+        if room > f64(0.0):
             for p in range(base, base + npp):
                 q = out[k, p]
                 if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):

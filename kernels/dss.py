@@ -247,7 +247,7 @@ def dss_update(
 # corners through the table. Summed as (0 + own) + other, an edge node's sum is the table
 # order's, bit for bit (addition commutes), and a corner's is the table's: the same bits as
 # ``gather``. Alone, the DSS update takes 0.55–0.74× the node gather's time (np 8 to 4, one
-# thread); a step's saving is benchmarks/archive/dss_by_element.py's. Warp's CPU code indexes every
+# thread); a step's saving is benchmarks/archive/replaced_paths.py dss_by_element's. Warp's CPU code indexes every
 # array through its run-time strides (an integer multiply an access): rows cut the accesses.
 
 

@@ -338,7 +338,7 @@ def weak_laplacian_across(np_: int, lanes: int, dtype=f64):
     block's first); fx, fy (np²) scratch; dvv as ``operators.dvv_matrix``; first a run-time 0
     (the sweeps' loops start there, so Warp keeps them rolled and unrolls only the sums). Each
     sum is ``laplacian_element``'s along a row, its products commuted, in the same order: the
-    same bits (``benchmarks/archive/across_elements.py``). HOMME's ``laplace_sphere_wk``. Values of
+    same bits (``benchmarks/archive/replaced_paths.py across_elements``). HOMME's ``laplace_sphere_wk``. Values of
     ``dtype``: float32's W = 16 fill one AVX-512 register."""
     NP, W = int(np_), int(lanes)
     mat = row_derivatives(NP, dtype)[1]
@@ -443,7 +443,7 @@ def laplacian_across(
     ``lanes`` consecutive elements e = W·(tid + offset) + w, w < W, each node's value a
     ``wp.types.vector(W)`` of those elements' values, each derivative sweep dvv's scalars times
     such vectors (the rows' products, commuted, summed in the same order: the same bits,
-    ``benchmarks/archive/across_elements.py``). The state, Y, L and the DSS stay in today's layout:
+    ``benchmarks/archive/replaced_paths.py across_elements``). The state, Y, L and the DSS stay in today's layout:
     each field's values (``field``, formed on rows as there) go lane by lane into the scratch X,
     the sweeps go through the scratch fx, fy, and L is written back lane by lane; the second
     pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by

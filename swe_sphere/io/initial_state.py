@@ -51,6 +51,7 @@ from ..core.constants import Planet
 from ..core.errors import SceneError
 from .formats import file_stamp
 from .reanalysis import REANALYSIS_CASES
+from .restart_file import case_params
 from .restart_file import read as read_restart
 from .units import DEPTH_UNITS, LAT_UNITS, LON_UNITS, WIND_UNITS, units_ok
 
@@ -280,7 +281,8 @@ def load_state(path, day: float | None = None):
             grid = cached_grid(scene["ne"], scene["np"], scene.get("mesh"))
             lat, lon = grid.lat[grid.first], grid.lon[grid.first]
             u, v, h = grid.to_unique(stored["x"])
-            case = make_case(scene["case"], scene["case_params"], Planet.from_table(scene["planet"]), SCENE_CASES)
+            params = case_params(scene["case_params"], stored["path"], stored["analysed"])
+            case = make_case(scene["case"], params, Planet.from_table(scene["planet"]), SCENE_CASES)
             return NodeState(where, lat, lon, dict(u=u, v=v, h=h, hs=case.hs(lat, lon)))
         t = _time_index(ds, day, where)
         if "h" in ds.variables and "ncol" in ds["h"].dims:

@@ -213,6 +213,13 @@ def _write_analysed(ds, analysed) -> None:
     ds.analysed_read = analysed.read
 
 
+def case_params(params: dict, path, analysed: bool) -> dict:
+    """A stored scene's case parameters ``params`` as a case rebuilt from the restart file ``path``
+    takes them: with ``analysed_file`` the file itself where it keeps a reanalysis start's state
+    (``analysed``, ``read``'s; ``ANALYSED``), so the input file is not needed; else as stored."""
+    return params | {"analysed_file": str(path)} if analysed else params
+
+
 def read_analysed(path) -> dict:
     """The reanalysis start's state kept in the restart file ``path`` (``ANALYSED``), as
     ``reanalysis.Analysed`` takes it: {"h_surface", "vorticity", "divergence", "hs" (complex (nalm,)

@@ -44,11 +44,20 @@ class Checkpoint:
     restart_every: float | None = None  # days: the interval the run wrote restart files at (None: at a signal only)
     control: dict | None = None  # under step control ``StepControl.state()`` (its ``day``: the time reached)
     members: int | None = None  # an ensemble's member count (x every member's, side by side); None: one run
+    analysed: bool = False  # the file keeps a reanalysis start's analysed state (``restart_file.ANALYSED``)
 
     @property
     def day(self) -> float:
         """The model day reached (days from t = 0)."""
         return self.scene.day(self.step) if self.control is None else self.control["day"]
+
+
+def run_scene(ck: Checkpoint) -> Scene:
+    """The scene a run from checkpoint ``ck`` builds its case from: ``ck.scene``, a reanalysis
+    start's case reading the analysed state the file keeps (``restart_file.case_params``), so
+    the run needs no input file."""
+    params = restart_file.case_params(ck.scene.case_params, ck.path, ck.analysed)
+    return ck.scene if params == ck.scene.case_params else replace(ck.scene, case_params=params)
 
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
@@ -63,7 +72,7 @@ def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = Non
     Raises ``SceneError`` (one line) for an unknown stepper, one that cannot step the
     checkpoint's precision (``refuse_precision``), a dt <= 0, or a run from the branch day to
     ``days`` or an output interval that is not whole steps of dt."""
-    s = ck.scene
+    s = run_scene(ck)
     stepper = resolve_stepper_days({"stepper": s.stepper}, stepper)[0]  # the checkpoint's, or another known one
     refuse_precision(s.precision, stepper)
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}
@@ -107,16 +116,12 @@ def read_on_root(path, comm) -> Checkpoint:
 
 
 def read(path) -> Checkpoint:
-    """Read a checkpoint (``restart_file.read``) and its scene (a reanalysis start's case reading its
-    analysed state from the file itself, ``case.analysed_file``). Raises ``CheckpointError`` (one line)."""
+    """Read a checkpoint (``restart_file.read``) and its scene. Raises ``CheckpointError`` (one line)."""
     stored = restart_file.read(path)
-    analysed = stored.pop("analysed")
     try:
         scene = scene_from_dict(stored.pop("scene"))
     except (KeyError, ValueError, TypeError) as err:
         raise CheckpointError(f"{Path(path)}: damaged checkpoint ({type(err).__name__}: {err})") from None
-    if analysed:  # a reanalysis start: its case from the state the file keeps, the input file not needed
-        scene = replace(scene, case_params=scene.case_params | {"analysed_file": str(stored["path"])})
     return Checkpoint(scene, **stored)
 
 
@@ -150,7 +155,7 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
         return ck, branch(ck, stepper=stepper, dt=dt, days=days), start, None, False
     # the scene that continues it to ``days``, the state handed out with its t = 0 diagnostics; no second
     # digital filter
-    scene = ck.scene if days is None else with_days(ck.scene, days)
+    scene = run_scene(ck) if days is None else with_days(run_scene(ck), days)
     if scene.days < ck.day:
         raise CheckpointError(f"the run length {scene.days:g} days ends before the checkpoint (day {ck.day:g})")
     return ck, scene, start, ck.initial, True

@@ -16,6 +16,7 @@ import xarray as xr
 from swe_sphere.cases.reference import spectral_fields
 from swe_sphere.core.constants import EARTH
 from swe_sphere.core.errors import SceneError
+from swe_sphere.io.initial_state import load_state
 from swe_sphere.io.reanalysis import analyse, taper
 from swe_sphere.io.reanalysis_file import G0
 from swe_sphere.io.restart_file import ANALYSED, read_analysed
@@ -431,6 +432,24 @@ def test_a_continuation_needs_no_input_file(capsys, tmp_path, monkeypatch):
         assert json.loads(rest.attrs["scene"])["notes"][0] == read and f"note        {read}\n" in whole_out
     kept, again = read_analysed("half.restart.nc"), read_analysed("rest.restart.nc")  # the next continuation's
     assert kept["read"] == again["read"] and all(np.array_equal(kept[k], again[k]) for k in ANALYSED)
+    # a scene started from the restart file (case name = "file") takes its hs from the kept state too
+    state = load_state("half.restart.nc")
+    with xr.open_dataset("whole.nc", decode_times=False) as whole:
+        hs = state("hs", np.radians(whole.lat.values), np.radians(whole.lon.values))
+        assert np.array_equal(hs, whole.hs.values)
+
+
+def test_a_reanalysis_restart_file_continues_with_its_scene_named(capsys, tmp_path, monkeypatch):
+    """``run --continue R SCENE`` checks that R is a run of SCENE: the case's kept analysed state
+    (its ``analysed_file``, set for the run from R) is no difference."""
+    monkeypatch.chdir(tmp_path)
+    args = ("--ne", "2", "--no-progress")
+    code, _, err = cli_main(
+        capsys, "run", "tc7_era_july", *args, "--days", "1", "--restart-every", "1", "--output", "t.nc"
+    )
+    assert code == 0, err
+    code, _, err = cli_main(capsys, "run", "--continue", "t.restart.nc", "tc7_era_july", *args, "--days", "2")
+    assert code == 0, err
 
 
 def test_a_packed_dataset_runs_as_given_and_continues_without_it(capsys, tmp_path, monkeypatch):

@@ -1,8 +1,17 @@
 """Local time stepping (``lts``, ``steppers.local``) on a refined mesh, TC5, np 4: what it saves,
-what its parts cost and how its work spreads over ranks; one subcommand a question, each written
-to ``results/lts/<subcommand>.json``.
+what its parts cost and how its work spreads over ranks. One subcommand a study, each written to
+``results/lts/<study>.json``::
 
-``study``: lts against the global explicit steppers, CPU clock, one thread: each stepper's largest
+    export SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+    python benchmarks/studies/lts.py study --mesh PATH/mountain_10_x2.g --days 3
+    python benchmarks/studies/lts.py level_cost --mesh PATH/mountain_10_x2.g
+    python benchmarks/studies/lts.py step_cost --mesh PATH/mountain_10_x2.g --dt 234.783 \\
+        --options '{"method": "mrab3", "level_margin": 1.3}'
+    python benchmarks/studies/lts.py partition --mesh MESH.g [--ranks 2 3 4 8]
+
+``study``
+~~~~~~~~~
+``lts`` against the global explicit steppers, CPU clock, one thread: each stepper's largest
 Δt within an accuracy, and its CPU seconds per simulated day there. First a reference: RK4 at
 Δt = 86400/``--k-ref`` s over ``--days`` days of TC5 (the scene's ∇⁴). Then for each stepper the
 largest Δt = 86400/k s (whole steps a day; k bisected over ``--k-range``) whose run does not blow
@@ -10,7 +19,9 @@ up and whose final depth is within ``--tol`` of the reference's (max-norm, relat
 error; at its stability limit a run that has not blown up yet can be far off), and at that Δt the
 median CPU time (``time.process_time`` of ``Simulation.run``) of ``--rounds`` runs.
 
-``level_cost``: a level's tendency evaluation against its element count, CPU clock: does
+``level_cost``
+~~~~~~~~~~~~~~
+A level's tendency evaluation against its element count, CPU clock: does
 ``rhs_part`` cost in proportion to the elements it runs over? TC5's tendency terms (continuity,
 momentum advection, Coriolis, pressure gradient, topography), one thread: the levels from the
 initial flow (``grid.levels``, at most ``--max-levels``), then per level (and for the levels finer
@@ -19,7 +30,9 @@ than the coarsest together, the ``lts`` fast part) the CPU time of one ``Shallow
 elements, the DSS over the nodes it touches) and of the whole-grid ``rhs``; µs per element
 evaluated and the ratio to the whole grid's, rounds interleaved, medians.
 
-``step_cost``: where a step goes, the ∇⁴ and the dynamics, and for ``method = "mrab3"`` its level
+``step_cost``
+~~~~~~~~~~~~~
+Where a step goes, the ∇⁴ and the dynamics, and for ``method = "mrab3"`` its level
 parts' evaluations and its sub-step sums; CPU clock, one thread. The scene's TC5 at ``--dt`` with
 ``--stepper`` and its options (``--options``, a JSON table), three steps taken first (past
 MRAB3's start); then the median over ``--rounds`` of the mean CPU time of ``--calls`` calls: a
@@ -27,20 +40,15 @@ step, the ∇⁴ over dt (``ShallowWater.hyperviscosity``), the whole grid's RHS
 level's ``rhs_part`` (times its 2^k evaluations a step) and each level's sums at each of the 2^K
 finest sub-steps. A step's dynamics is the step less the ∇⁴.
 
-``partition``: how evenly lts's work is spread over MPI ranks, the curve's chunks against each
+``partition``
+~~~~~~~~~~~~~
+How evenly lts's work is spread over MPI ranks, the curve's chunks against each
 level cut along the curve (``partition.level_chunks``, what a run of ``lts`` on several ranks
 uses). The levels lts steps (from the flow) and those the partition is made from (from the
 elements' sizes alone); for each rank count, the largest rank's work over the mean (work:
 Σ 2^level over its elements, the evaluations of a coarse step), each level's largest share over
 the mean, and the element pairs that share a node across ranks (what the DSS exchanges grow
 with). No timing: the figures are the partition's.
-
-    export SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
-    python benchmarks/studies/lts.py study --mesh PATH/mountain_10_x2.g --days 3
-    python benchmarks/studies/lts.py level_cost --mesh PATH/mountain_10_x2.g
-    python benchmarks/studies/lts.py step_cost --mesh PATH/mountain_10_x2.g --dt 234.783 \\
-        --options '{"method": "mrab3", "level_margin": 1.3}'
-    python benchmarks/studies/lts.py partition --mesh MESH.g [--ranks 2 3 4 8]
 """
 
 from __future__ import annotations
@@ -61,7 +69,7 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))  # meshes.case_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-from results import DAY, positive, quiet_warp, recorded, timed  # noqa: E402  (after the path: benchmarks/ first)
+from results import DAY, positive, quiet_warp, recorded, section, studies, timed  # noqa: E402  (after the path: benchmarks/ first)
 
 from swe_sphere import BlowUp, CubedSphere, Simulation, load_scene  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates  # noqa: E402
@@ -133,7 +141,7 @@ def largest_accurate(args, stepper, options, ref):
     return hi
 
 
-def study(args) -> None:
+def steppers_compared(args) -> None:
     """Each stepper's largest accurate Δt and its CPU seconds a simulated day there."""
     ref = run(args.mesh, args.days, "rk4", {}, args.k_ref)[0]
     rows = []
@@ -159,7 +167,7 @@ def study(args) -> None:
         print(f"{label:36s} {dt:8.1f} {cpu:10.3f} {cpu / base:6.2f} {err:10.2e}  {levels}")
 
 
-def level_cost(args) -> None:
+def level_costs(args) -> None:
     """Each level's ``rhs_part`` against the whole grid's ``rhs``, µs an element."""
     grid = CubedSphere(0, 4, mesh=load_scene("tc5_mountain", mesh=args.mesh).make_mesh())
     case, model = case_model(grid, "tc5_mountain", TC5_TERMS, threads=1)
@@ -194,7 +202,7 @@ def level_cost(args) -> None:
         print(f"{name:44s} {nelem:8d} {t * 1e3:8.3f} {t / nelem * 1e6:11.2f} {t / nelem / whole:8.2f}")
 
 
-def step_cost(args) -> None:
+def step_costs(args) -> None:
     """A step, its ∇⁴, the whole RHS and MRAB3's level parts and sums, CPU ms."""
     options = json.loads(args.options)
     changes = {} if args.hypervis_scaling is None else {"hypervis_scaling": args.hypervis_scaling}
@@ -222,7 +230,7 @@ def step_cost(args) -> None:
         print(f"  {stepper.levels.describe()}: level parts {parts:.3f} ms a step, sub-step sums {sums:.3f} ms a step")
 
 
-def partition(args) -> None:
+def rank_balance(args) -> None:
     """The ranks' work over the mean, per level, and the element pairs across ranks."""
     options = {"method": "mrab3", "max_levels": args.max_levels, "level_margin": args.level_margin}
     sim = Simulation(load_scene("tc5_mountain", mesh=args.mesh, days=0.01, stepper="lts"), "cpu", progress=False)
@@ -249,11 +257,16 @@ def partition(args) -> None:
             print(f"| {size} | {name} | {work.max() / work.mean():.2f} | {shares} | {cut} |")
 
 
-def arguments(argv=None) -> argparse.Namespace:
-    """The subcommand and its options (argparse's one line and exit 2 for bad ones)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("study", help=study.__doc__)
+def options(study: str) -> argparse.ArgumentParser:
+    """The parser of ``study``'s options, the mesh among them (argparse's one line and exit 2 for a bad one)."""
+    parser = argparse.ArgumentParser(prog=f"lts.py {study}", description=section(__doc__, study))
+    parser.add_argument("--mesh", required=True, help="an Exodus .g file (a refined mesh)")
+    return parser
+
+
+def study(argv: list[str]) -> None:
+    """``study``: its options from ``argv``, its runs, its results file."""
+    p = options("study")
     # whole days: every dt searched is a day over a whole number of steps (DAY / k)
     p.add_argument("--days", type=positive(int), default=3)
     p.add_argument("--k-range", type=int, nargs=2, default=(24, 480), help="steps a day searched")
@@ -263,29 +276,50 @@ def arguments(argv=None) -> argparse.Namespace:
     )
     p.add_argument("--rounds", type=positive(int), default=3)
     p.add_argument("--only", nargs="*", help="these steppers' labels alone (and rk4, the reference)")
-    p = sub.add_parser("level_cost", help=level_cost.__doc__)
+    args = p.parse_args(argv)
+    quiet_warp()
+    with recorded(__file__, "study"):
+        steppers_compared(args)
+
+
+def level_cost(argv: list[str]) -> None:
+    """``level_cost``: its options from ``argv``, its runs, its results file."""
+    p = options("level_cost")
     p.add_argument("--max-levels", type=positive(int), default=3)
     p.add_argument("--rounds", type=positive(int), default=7)
     p.add_argument("--calls", type=positive(int), default=50, help="evaluations timed a round")
     p.add_argument("--gap", type=int, nargs="+", default=[0, 4, 16, 64], help="merge a level's ranges over gaps up to")
-    p = sub.add_parser("step_cost", help=step_cost.__doc__)
+    args = p.parse_args(argv)
+    quiet_warp()
+    with recorded(__file__, "level_cost"):
+        level_costs(args)
+
+
+def step_cost(argv: list[str]) -> None:
+    """``step_cost``: its options from ``argv``, its runs, its results file."""
+    p = options("step_cost")
     p.add_argument("--dt", type=positive(float), required=True, help="s")
     p.add_argument("--stepper", default="lts")
     p.add_argument("--options", default="{}", help="the stepper's options, a JSON table")
     p.add_argument("--hypervis-scaling", type=float, help="the tensor ∇⁴'s s (default: the scene's constant ν)")
     p.add_argument("--calls", type=positive(int), default=20)
     p.add_argument("--rounds", type=positive(int), default=3)
-    p = sub.add_parser("partition", help=partition.__doc__)
+    args = p.parse_args(argv)
+    quiet_warp()
+    with recorded(__file__, "step_cost"):
+        step_costs(args)
+
+
+def partition(argv: list[str]) -> None:
+    """``partition``: its options from ``argv``, its figures, its results file."""
+    p = options("partition")
     p.add_argument("--ranks", type=positive(int), nargs="+", default=[2, 3, 4, 8])
     p.add_argument("--max-levels", type=positive(int), default=3)
     p.add_argument("--level-margin", type=float, default=1.3)
-    for p in sub.choices.values():
-        p.add_argument("--mesh", required=True, help="an Exodus .g file (a refined mesh)")
-    return parser.parse_args(argv)
+    args = p.parse_args(argv)
+    with recorded(__file__, "partition"):
+        rank_balance(args)
 
 
 if __name__ == "__main__":
-    args = arguments()
-    quiet_warp()
-    with recorded(__file__, args.command):
-        globals()[args.command](args)
+    studies(__doc__, {name: globals()[name] for name in ("study", "level_cost", "step_cost", "partition")})

@@ -245,3 +245,20 @@ def test_every_cited_results_file_exists():
     assert "error_control/adaptive_proportionality/adaptive_proportionality.json" in cited  # docs/explanation cites it
     missing = {path: source for path, source in cited.items() if not list((BENCHMARKS / "results").glob(path))}
     assert missing == {}
+
+
+def test_a_record_names_the_repository_s_paths_relative_and_others_by_their_last_part():
+    """``results.portable``, what every results file goes through as it is written: a path into the
+    repository relative to its root, a package's file from its package on, the system's folders kept,
+    any other path DIR/<its last part>; words with slashes that are no paths (units, ratios) untouched.
+    (In a child process: results.py sets the interpreter's excepthook and path as a script's.)"""
+    text = (
+        "--mesh /w/repo/tests/data/m.g; /w/repo: 2.1 s; at /tmp/site/warp/_src/context.py:12(launch); "
+        "/opt/v/lib/site-packages/numpy/x.py:3; /usr/bin/mpirun -np 1; --python /home/u/.venvs/d/bin/python; m/s, h / g"
+    )
+    code = f"import results; print(results.portable({text!r}, ('/w/repo',)))"
+    done = subprocess.run([sys.executable, "-c", code], cwd=BENCHMARKS, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == (
+        "--mesh tests/data/m.g; .: 2.1 s; at warp/_src/context.py:12(launch); "
+        "numpy/x.py:3; /usr/bin/mpirun -np 1; --python DIR/python; m/s, h / g"
+    )

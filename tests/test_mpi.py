@@ -161,6 +161,7 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
     ),
     ("tc7_era_july", ["--days", "0.1"]),  # a reanalysis start (ERA-Interim's July), synthesised at each rank's nodes
     ("tc5_mountain", ["--stepper", "kgu35", "--days", "0.1", "--precision", "float32"]),  # a float32 tendency
+    ("tc5_mountain", ["--stepper", "rk4", "--days", "0.1", "--precision", "float32_state"]),  # the float32 state
     (  # a digital-filter start; T213 errors at day 1
         "tc5_mountain",
         ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi"]

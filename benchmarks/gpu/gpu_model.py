@@ -217,53 +217,55 @@ def main(argv=None):
         help="the model's (issue 128: each design's bytes; default %(default)s)",
     )
     args = p.parse_args(argv)
-    wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
-    if hasattr(wp, "LOG_WARNING"):
-        wp.config.log_level = wp.LOG_WARNING
-    tally = Tally()
-    with instrumented(tally):
-        counts, N = count(args, tally)
+    # a precision's counts in a file of their own (results/gpu_model/gpu_model_<precision>.json)
+    stem = None if args.precision == "float64" else f"gpu_model_{args.precision}"
+    with recorded(__file__, stem):
+        wp.config.quiet = True  # Warp < 1.10; newer Warp reads log_level (as tests/conftest.py)
+        if hasattr(wp, "LOG_WARNING"):
+            wp.config.log_level = wp.LOG_WARNING
+        tally = Tally()
+        with instrumented(tally):
+            counts, N = count(args, tally)
 
-    print(
-        f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n"
-    )
-    print("| kernel | B/pt per launch | flop/pt | flop/B | launches in one RHS | in one ∇⁴ |")
-    print("|---|---:|---:|---:|---:|---:|")
-    keys = sorted(set(counts["rhs"][3]) | set(counts["hv"][3]))
-    for key in keys:
-        n = counts["rhs"][3][key] + counts["hv"][3][key]
-        bpp = (counts["rhs"][4][key] + counts["hv"][4][key]) / n / N
-        fl = FLOPS.get(key.split("__")[0])
         print(
-            f"| {key} | {bpp:.0f} | {fl if fl is not None else '–'} | {fl / bpp if fl else float('nan'):.2f} | "
-            f"{counts['rhs'][3][key]} | {counts['hv'][3][key]} |"
+            f"## Per kernel (counted at ne={args.ne} np=4, N={N}; bytes of each distinct array argument per point per launch)\n"
         )
-    if args.check_ne:
+        print("| kernel | B/pt per launch | flop/pt | flop/B | launches in one RHS | in one ∇⁴ |")
+        print("|---|---:|---:|---:|---:|---:|")
+        keys = sorted(set(counts["rhs"][3]) | set(counts["hv"][3]))
+        for key in keys:
+            n = counts["rhs"][3][key] + counts["hv"][3][key]
+            bpp = (counts["rhs"][4][key] + counts["hv"][4][key]) / n / N
+            fl = FLOPS.get(key.split("__")[0])
+            print(
+                f"| {key} | {bpp:.0f} | {fl if fl is not None else '–'} | {fl / bpp if fl else float('nan'):.2f} | "
+                f"{counts['rhs'][3][key]} | {counts['hv'][3][key]} |"
+            )
+        if args.check_ne:
+            print(
+                f"\nCPU check: each launch alone at ne={args.check_ne} np=4, CUDA layout, one thread, CPU clock, median of 20\n"
+            )
+            print("| kernel | µs | B/pt | implied GB/s |")
+            print("|---|---:|---:|---:|")
+            for key, us, bpp, gbs in cpu_check(args.check_ne, 20):
+                print(f"| {key.split('__')[0]} | {us:.0f} | {bpp:.0f} | {gbs:.1f} |")
         print(
-            f"\nCPU check: each launch alone at ne={args.check_ne} np=4, CUDA layout, one thread, CPU clock, median of 20\n"
+            f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hv.operator, with its memset): "
+            f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n"
         )
-        print("| kernel | µs | B/pt | implied GB/s |")
-        print("|---|---:|---:|---:|")
-        for key, us, bpp, gbs in cpu_check(args.check_ne, 20):
-            print(f"| {key.split('__')[0]} | {us:.0f} | {bpp:.0f} | {gbs:.1f} |")
-    print(
-        f"\nRHS: {counts['rhs'][1]:.0f} B/pt, {counts['rhs'][0]:.0f} launches; ∇⁴ (hv.operator, with its memset): "
-        f"{counts['hv'][1]:.0f} B/pt, {counts['hv'][0]:.0f} launches; ∇⁴/RHS bytes {counts['hv'][1] / counts['rhs'][1]:.2f}\n"
-    )
 
-    print(
-        f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n"
-    )
-    print("| stepper | launches/step | host syncs/step | B/pt/step | RHS-eq (bytes) |")
-    print("|---|---:|---:|---:|---:|")
-    names = ["rhs", "hv", *steppers(args.precision)]
-    for name in names:
-        L, bpp, syncs, _, _ = counts[name]
-        print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")
+        print(
+            f"## Per step (semi_implicit, implicit, imex at {args.implicit_dt_factor:g}× TC5's Δt; {args.steps} steps after {args.warmup})\n"
+        )
+        print("| stepper | launches/step | host syncs/step | B/pt/step | RHS-eq (bytes) |")
+        print("|---|---:|---:|---:|---:|")
+        names = ["rhs", "hv", *steppers(args.precision)]
+        for name in names:
+            L, bpp, syncs, _, _ = counts[name]
+            print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")
 
-    predictions(args, counts, names)
+        predictions(args, counts, names)
 
 
 if __name__ == "__main__":
-    with recorded(__file__):
-        main()
+    main()

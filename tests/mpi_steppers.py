@@ -1,6 +1,6 @@
 """Run by ``test_mpi.py`` under ``mpiexec`` (and imported by it for the one-rank runs): TC5
 at ne 2 with each stepper that solves (semi-implicit, JFNK, IMEX, an IMEX Butcher pair,
-exponential; JFNK and IMEX also with their Helmholtz solves in float32, ``precision = "mixed"``),
+exponential; JFNK and IMEX also with their Helmholtz solves in float32, ``precision = "float32"``),
 one simulation over all ranks each, and a semi-implicit run continued from a restart file.
 Rank 0 saves the final whole-grid states: ``python mpi_steppers.py OUT.npz CHECKPOINT``.
 """
@@ -24,8 +24,8 @@ STEPPERS = {
     "implicit": ("implicit", {}),
     "imex": ("imex", {}),
     "tableau": ("tableau", None),
-    "implicit_mixed": ("implicit", {"precision": "mixed"}),
-    "imex_mixed": ("imex", {"precision": "mixed", "tol": 1e-10}),  # its ranks agree to tol (test_mpi): a tight one
+    "implicit_mixed": ("implicit", {"precision": "float32"}),
+    "imex_mixed": ("imex", {"precision": "float32", "tol": 1e-10}),  # its ranks agree to tol (test_mpi): a tight one
     "epi2": ("epi2", {}),
     "epi3": ("epi3", {}),
 }

@@ -550,7 +550,7 @@ def test_solver_steppers_agree_with_one_rank(over_ranks, rng):
     """Semi-implicit, JFNK, IMEX and an IMEX Butcher pair (``tableau``, ARK3(2)4L[2]SA) on 3
     ranks (their Krylov inner products summed over ranks) end at one rank's state up to
     round-off (measured for the first three: 1e-14, 2e-13, 1e-14 of the wind), JFNK with
-    float32 Helmholtz preconditioner solves too (``precision = "mixed"``), and so do a
+    float32 Helmholtz preconditioner solves too (``precision = "float32"``), and so do a
     semi-implicit run (its warm Helmholtz guess in the restart file) written on one rank
     and continued on 3, and the exponential steppers (wind 3.9e-11 and 2.9e-11: after a
     step on 3 ranks the state is 3e-16 from one rank's, but a forward-difference J·v

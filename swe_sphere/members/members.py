@@ -124,7 +124,7 @@ class Members:
         self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
         self.g, self.nnodes = [u.model.g for u in self.units for _ in range(u.members)], grid.nnodes
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
-            warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=5)
+            warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
     def __len__(self) -> int:
         """N, the members."""

@@ -6,13 +6,14 @@ from ``guess_history``'s projection; ``HelmholtzOptions`` are its scene options.
 
 from __future__ import annotations
 
+import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 from types import MappingProxyType
 
 import warp as wp
 
-from ..core.errors import StepFailure
+from ..core.errors import ArgumentError, StepFailure
 from ..core.graphs import captured
 from ..kernels import gravity_wave as gk
 from ..kernels import helmholtz as hk
@@ -20,9 +21,13 @@ from ..kernels import helmholtz_cg as cgk
 from .gravity_wave import GravityWaveOperator, check_mean_depth
 from .guess_history import GuessHistory, HistoryWork
 from .helmholtz_cg import SINGLE_FLOOR, SINGLE_TOL, HelmholtzCG
+from .precision import precision_dtype
 
 f64 = wp.float64
-PRECISIONS = ("double", "mixed")
+# the solve's words before ``[numerics] precision``'s (``precision.PRECISIONS``), each taken after a
+# one-line DeprecationWarning
+OLD_PRECISIONS = {"double": "float64", "mixed": "float32"}
+SOLVE_PRECISIONS = ("float64", "float32")  # of ``precision.PRECISIONS``, the CG's float types
 TIGHTEST = 1e-12  # the tightest relative residual ``tighten`` sets
 KEPT_COEFFICIENTS = 4  # the a's whose guess histories and solve graphs a solver keeps (``_use``)
 MAX_GUESS_HISTORY = (
@@ -30,10 +35,18 @@ MAX_GUESS_HISTORY = (
 )
 
 
-def check_precision(precision: str) -> None:
-    """ValueError 'precision must ...' unless one of ``PRECISIONS``."""
-    if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)} (got {precision!r})")
+def check_precision(precision: str) -> str:
+    """``precision`` in ``[numerics] precision``'s words (``precision.PRECISIONS``): "float64", or
+    "float32" (the CG's passes in float32, refined in float64); an old word ("double", "mixed",
+    ``OLD_PRECISIONS``) as its new one, after a one-line ``DeprecationWarning``. ``ArgumentError``
+    (a ValueError) 'precision must be one of float64, float32 ...' otherwise."""
+    if isinstance(precision, str) and precision in OLD_PRECISIONS:
+        new = OLD_PRECISIONS[precision]
+        warnings.warn(f'precision "{precision}" is deprecated: "{new}", as [numerics] precision', DeprecationWarning, 3)
+        precision = new
+    if precision not in SOLVE_PRECISIONS:  # a solve's own words: the state's float type is not its
+        raise ArgumentError(f"precision must be one of {', '.join(SOLVE_PRECISIONS)} (got {precision!r})")
+    return precision
 
 
 @dataclass(frozen=True)
@@ -42,8 +55,9 @@ class HelmholtzOptions:
     and an IMEX ``[tableau]`` hold them among their own): ``tol``, the CG's relative
     residual ‖r‖ ≤ tol‖b‖, in (0, 1); ``maxiter`` ≥ 1, the CG iterations a solve may take
     (past it the step fails, ``HelmholtzSolver.iterations``); ``mean_depth`` H (m, ≥ 0;
-    0: the initial state's, ``model.gravity_wave.reference_depth``); ``precision`` (one of
-    ``PRECISIONS``: "double", or "mixed", float32 CG passes refined in float64 to ``tol``);
+    0: the initial state's, ``model.gravity_wave.reference_depth``); ``precision`` ("float64", or
+    "float32": float32 CG passes refined in float64 to ``tol``; ``check_precision``, the old
+    "double" and "mixed" deprecated);
     ``guess_history`` (0..``MAX_GUESS_HISTORY``: past solutions a solve starts from the
     projection on, ``GuessHistory``; 0: from the last solution, or zero). Raises
     ValueError '<option> must ...'."""
@@ -51,11 +65,11 @@ class HelmholtzOptions:
     tol: float = 1e-6
     maxiter: int = 500
     mean_depth: float = 0.0
-    precision: str = "double"
+    precision: str = "float64"
     guess_history: int = 8
 
     def __post_init__(self):
-        check_precision(self.precision)
+        object.__setattr__(self, "precision", check_precision(self.precision))  # frozen: the word as new
         if not 0 < self.tol < 1:
             raise ValueError(f"tol must be in (0, 1) (got {self.tol})")
         if self.maxiter < 1:
@@ -90,11 +104,11 @@ class HelmholtzSolver:
     residual of the CG, ‖r‖ ≤ tol‖b‖) and ``maxiter``; ``guess_history`` k > 0: start each CG
     from the projection onto past solutions (``GuessHistory``, one per a), with no product for
     its residual; ``precision``:
-    "double", or "mixed" (the CG in float32, ``HelmholtzCG``, refined in float64
+    "float64", or "float32" (the CG in float32, ``HelmholtzCG``, refined in float64
     to ``tol``, ``_refined``; float32 alone for a tol it reaches, as the JFNK
     preconditioner's 1e-2). On the CPU the float32 product is no faster than the
     float64 one (it is bound by its gathers, not its bytes:
-    ``benchmarks/micro/step/roofline.py helmholtz_roofline``), so "double" is every stepper's default. ``warm``:
+    ``benchmarks/micro/step/roofline.py helmholtz_roofline``), so "float64" is every stepper's default. ``warm``:
     with k = 0, start each CG from the last solution (for a sequence of similar solves, as
     the semi-implicit steps), else from zero.
 
@@ -111,7 +125,7 @@ class HelmholtzSolver:
         self.operator = operator
         self.model = model = operator.model
         self.tol, self.maxiter, self.warm = float(options.tol), int(options.maxiter), bool(warm)
-        precision = options.precision
+        dtype = precision_dtype(options.precision)
         dev, N, nu = model.topology.device, model.topology.N, model.topology.nunique
         self.Gh, self.Dv = wp.zeros((2, N), dtype=f64, device=dev), wp.zeros((1, N), dtype=f64, device=dev)
         self.b, self.y = wp.zeros(nu, dtype=f64, device=dev), wp.zeros(nu, dtype=f64, device=dev)
@@ -119,7 +133,7 @@ class HelmholtzSolver:
             3, dtype=f64, device=dev
         )  # iterations, failures, the first failure's residual (cgk.ITERATIONS …)
         self.cg = HelmholtzCG(model, f64, self.b, self.y, self.stats)
-        self.low = None if precision == "double" else HelmholtzCG(model, wp.float32, stats=self.stats)
+        self.low = None if dtype is f64 else HelmholtzCG(model, dtype, stats=self.stats)
         rec = model.launches.record
         self._shift = rec(cgk.add_mean_difference, nu, [self.y, self.cg.sums, f64(model.topology.total_area)])
         if self.low is not None:  # the refinement's conversions between the two solves and its test
@@ -502,7 +516,7 @@ class HelmholtzSolver:
 
     def _pcg(self, c: float) -> None:
         """(M + cK) y = b to the relative residual ``tol`` in float64 (``precision``
-        "double"), or in float32 with float64 refinement ("mixed"); then the area
+        "float64"), or in float32 with float64 refinement ("float32"); then the area
         integral of y set to that of b (on the device). Iterations into ``stats``."""
         h = self._history
         fresh = h is not None and h.fresh  # no basis yet: from the last solution (warm), not from zero

@@ -29,7 +29,7 @@ SINGLE_FLOOR = 1e-4
 class HelmholtzCG:
     """(M + cK) y = b on unique nodes (``nunique``,) by Chronopoulos–Gear CG (1989, J.
     Comput. Appl. Math. 25, 153) preconditioned by M⁻¹, matrix-free, in ``dtype``
-    (float64, or float32 for the inner solves of ``HelmholtzSolver``'s "mixed"
+    (float64, or float32 for the inner solves of ``HelmholtzSolver``'s "float32"
     precision); inner products summed in float64 in a fixed order on any device,
     threads and ranks. ``b``, ``y``: the right-hand side and solution vectors
     (float64 ones may be given, shared with the caller); ``stats``: the float64

@@ -44,10 +44,10 @@ class ImplicitOptions:
     helmholtz_tol: float = 1e-2
     mean_depth: float = 0.0
     initial_guess: str = "extrapolate"
-    precision: str = "double"
+    precision: str = "float64"
 
     def __post_init__(self):
-        check_precision(self.precision)
+        object.__setattr__(self, "precision", check_precision(self.precision))  # frozen: the word as new
         if self.method not in ("theta", "bdf2"):
             raise ValueError(f"method must be 'theta' or 'bdf2' (got {self.method!r})")
         if not 0.5 <= self.theta <= 1.0:
@@ -111,8 +111,8 @@ class Implicit(ErrorEstimates, TrialSteps, Stepper):
     iterations), ``preconditioner`` ("helmholtz" | "none"), ``helmholtz_tol``
     (1e-2, the relative tolerance of the preconditioner's Helmholtz CG), ``mean_depth`` (H, m;
     0 = initial mean), ``initial_guess`` ("extrapolate": 2x(n) − x(n−1)
-    after the first step, "previous": x(n)), ``precision`` ("double" |
-    "mixed": the preconditioner's Helmholtz CG in float32, one solve to
+    after the first step, "previous": x(n)), ``precision`` ("float64" |
+    "float32": the preconditioner's Helmholtz CG in float32 (the old "double" and "mixed" deprecated), one solve to
     ``helmholtz_tol``, no refinement).
     Under error control (``[time] control = "error"``; Crank–Nicolson, θ = 0.5, alone) each step
     also gives an ``error_estimate`` of its local error before the ∇⁴, the trapezoidal rule's

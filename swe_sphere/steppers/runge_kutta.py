@@ -477,7 +477,7 @@ class Imex(ImexRK):
     Options (scene table ``[imex]``): ``scheme`` ("ars343" | "ars232", the pairs of
     ``tables.IMEX``), ``tol`` (the Helmholtz CG's relative residual, 1e-6),
     ``maxiter`` (500), ``mean_depth``
-    (H, m; 0 = the initial mean depth), ``precision`` ("double" | "mixed", as
+    (H, m; 0 = the initial mean depth), ``precision`` ("float64" | "float32", as
     ``semi_implicit``'s). The Helmholtz solve is ``helmholtz.HelmholtzSolver``'s
     compiled CG; each stage's solve starts from the projection onto past solutions
     of the stages with its a (all of ARS's), ``guess_history`` (0..32, 8) of them

@@ -55,8 +55,8 @@ class SemiImplicit(HelmholtzSteps, Leapfrog):
     Helmholtz solve is ``helmholtz.HelmholtzSolver``'s compiled CG; each solve
     starts from the projection of its right-hand side onto past solutions,
     ``guess_history`` (0..32, 8) of them (``helmholtz.GuessHistory``; 0: from the
-    last solution). ``precision`` ("double" | "mixed":
-    float32 CG passes refined in float64 to the same ``tol``; "double" is the
+    last solution). ``precision`` ("float64" | "float32", as [numerics] precision; the old "double" and
+    "mixed" deprecated: float32 CG passes refined in float64 to the same ``tol``; "float64" is the
     default because the float32 product is no faster on the CPU, the earlier benchmarks notebook (benchmarks/README.md before the suite)).
     Reports the Helmholtz iterations per step (under ``Simulation.run`` counted on
     the device and read once a block, the step a graph after the first). Raises

@@ -127,9 +127,9 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
                 stepper.step(x)
             if (
                 scene is richest and precision == "float64"
-            ):  # the float32 Helmholtz solves (refined and alone) of "mixed" precision
+            ):  # the float32 Helmholtz solves (refined and alone) of "float32" precision
                 for name in ("imex", "implicit"):
-                    stepper = make_stepper(name, model, scene.dt, precision="mixed")
+                    stepper = make_stepper(name, model, scene.dt, precision="float32")
                     stepper.step(model.new_state(*np.stack(case.initial(grid.lat, grid.lon))))
                 for name in ("implicit", "epi2"):  # the Krylov work's CUDA backends (a CPU device picks numpy's)
                     stepper = make_stepper(name, model, scene.dt)

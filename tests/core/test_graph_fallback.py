@@ -221,7 +221,7 @@ def test_every_device_loop_tests_a_one_int_flag(monkeypatch, stepper):
     uncaptured on CUDA, Warp (1.19) copies the whole condition array into a one-int host buffer
     and raises for a longer one (on an H200, the CG's three counters did, in every plain
     semi-implicit and IMEX step), while the CPU reads only its first int. Checked here on the
-    CPU, plain and graphed, the solves' refinement loop (``precision = "mixed"``) included."""
+    CPU, plain and graphed, the solves' refinement loop (``precision = "float32"``) included."""
     seen = []
 
     def one_int(condition, body, stream=None, **kwargs):
@@ -230,7 +230,7 @@ def test_every_device_loop_tests_a_one_int_flag(monkeypatch, stepper):
 
     real = wp.capture_while
     monkeypatch.setattr(wp, "capture_while", one_int)
-    for graphs, options in (("off", {}), ("on", {}), ("off", {"precision": "mixed"})):
+    for graphs, options in (("off", {}), ("on", {}), ("off", {"precision": "float32"})):
         scene = dataclasses.replace(tc5(stepper, 4), stepper_options=options)
         run(scene, "cpu", graphs)
     assert seen and set(seen) == {(1,)}, set(seen)

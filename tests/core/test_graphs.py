@@ -125,7 +125,7 @@ def test_graphed_steps_are_the_bits_of_plain_ones(one_thread, graph_launches, na
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("name", SOLVERS)
 def test_graphed_solver_steps_at_long_steps_are_the_bits_of_plain_ones(
     one_thread, graph_launches, name, precision, device

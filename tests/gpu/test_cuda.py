@@ -65,10 +65,10 @@ MIXED = sorted(n for n in SOLVER if "precision" in option_types(STEPPERS[n].Opti
 @requires_cuda
 @pytest.mark.parametrize("name", MIXED)
 def test_float32_helmholtz_solves_on_cuda_match_the_cpu(name):
-    """``precision = "mixed"`` (float32 CG, the element kernels on either device): the
+    """``precision = "float32"`` (float32 CG, the element kernels on either device): the
     devices' float32 round-off differs, so the states agree to the solves' tolerance
     (1e-6 relative, refined; JFNK's Newton to its 1e-8), not to round-off."""
-    cpu, cuda = (tc5_state(name, d, {"precision": "mixed"}) for d in ("cpu", "cuda"))
+    cpu, cuda = (tc5_state(name, d, {"precision": "float32"}) for d in ("cpu", "cuda"))
     rel = rows_apart(cuda, cpu)
     assert max(rel) <= 1e-5, f"{name}: rows differ by {rel}"
 

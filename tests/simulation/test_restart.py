@@ -41,7 +41,7 @@ VARIANTS = (
     [(name, {}) for name in STEPPERS]
     + [("implicit", {"method": "bdf2"}), ("tableau", load_scene("ark324l2sa").stepper_options)]
     + [("lts", {"method": "mrab3"})]  # one level on the cube: AB3, its start and histories
-    + [(name, {"precision": "mixed"}) for name in ("semi_implicit", "imex", "implicit")]
+    + [(name, {"precision": "float32"}) for name in ("semi_implicit", "imex", "implicit")]
     + [("mri", {"method": "mri_gark_erk33a", "inner": "fbrk32"}), ("mri", {"method": "mis4a", "inner": "rk4"})]
 )
 IDS = [n + "".join(f"-{v}" for v in o.values() if not isinstance(v, list)) for n, o in VARIANTS]

@@ -105,7 +105,7 @@ def test_schur_solve_inverts_i_minus_a_l(rng):
         assert rel(zn, s * r) > 0.1  # a real correction, not the identity
 
 
-def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="double"):
+def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="float64"):
     """(M + cK) y = b by the compiled CG on ``threads`` CPU threads (TC5 grid at ne): (y, iterations, solver)."""
     monkeypatch.setenv("SWE_SPHERE_THREADS", str(threads))
     scene = load_scene("tc5_mountain", ne=ne, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
@@ -121,7 +121,7 @@ def _pcg_solve(monkeypatch, threads, ne, c, b, tol=1e-11, precision="double"):
 
 # precision, tol, the bound on |y − spsolve| / |spsolve| (measured: 2e-12; 1.3e-11 and 3e-12
 # for the refined float32 solves; 2.4e-3 and 1.6e-3 for the float32 solve alone to 1e-2)
-SOLVES = [("double", 1e-11, 1e-9), ("mixed", 1e-11, 1e-9), ("mixed", 1e-2, 3e-2)]
+SOLVES = [("float64", 1e-11, 1e-9), ("float32", 1e-11, 1e-9), ("float32", 1e-2, 3e-2)]
 
 
 @pytest.mark.parametrize("precision, tol, bound", SOLVES)
@@ -150,7 +150,7 @@ def test_pcg_equals_a_direct_sparse_solve(rng, monkeypatch, precision, tol, boun
         assert its > 1  # a real iteration, not a converged start
 
 
-@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_a_history_start_gives_the_answers_in_fewer_iterations(rng, precision):
     """Six solves (ne = 4, c = 4e10 m²) of right-hand sides on a quadratic in time,
     b(t) = area·(f₀ + t f₁ + t² f₂), from the last solution (``guess_history`` 0) and from
@@ -159,10 +159,10 @@ def test_a_history_start_gives_the_answers_in_fewer_iterations(rng, precision):
     the exact one, its mean shift included), in no more iterations, and once three solutions
     span the quadratic
     in at most two a solve (measured: 9, then 8 a solve warm; 9, 8, 7, 0, 1, 0 projected,
-    9, 8, 7, 1, 0, 0 in "mixed" precision; a solution already in the span adds nothing); the basis
+    9, 8, 7, 1, 0, 0 in "float32" precision; a solution already in the span adds nothing); the basis
     A-orthonormal, A applied anew, in the three vectors spanning the quadratic within 1e-13
     (measured 1e-15; the later ones, increments of the residual's size whose products carry
-    the CG's round-off ε‖b‖, 1e-7 in float64 and 3e-6 in "mixed": the guess's accuracy;
+    the CG's round-off ε‖b‖, 1e-7 in float64 and 3e-6 in "float32": the guess's accuracy;
     the answer's residual gets their errors times the coefficients, round-off of ‖b‖)."""
     scene = load_scene("tc5_mountain", ne=4, np_=4, days=1.0, stepper="semi_implicit", dt=1800.0)
     sim = make_sim(scene)
@@ -198,7 +198,7 @@ def test_a_history_start_gives_the_answers_in_fewer_iterations(rng, precision):
     assert n >= 3 and G[:3, :3].max() < 1e-13
 
 
-@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_pcg_has_the_same_bits_on_one_and_two_threads(rng, monkeypatch, precision):
     """The compiled CG at ne = 16 (enough nodes that launches split): the same
     iterations and the same bits on 1 and 2 CPU threads, in either precision."""
@@ -211,7 +211,7 @@ def test_pcg_has_the_same_bits_on_one_and_two_threads(rng, monkeypatch, precisio
 
 
 @pytest.mark.parametrize("threads", [1, 2])
-@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+@pytest.mark.parametrize("precision, tol", [("float64", 1e-10), ("float32", 1e-10), ("float32", 1e-2)])
 def test_a_helmholtz_solve_reads_nothing_back(rng, monkeypatch, tally, precision, tol, threads):
     """A Helmholtz solve (ne = 4, one rank) reads nothing back to the host: the CG's
     recurrences, its convergence test, the refinement's and the area shift run on the
@@ -239,7 +239,7 @@ def test_a_helmholtz_solve_reads_nothing_back(rng, monkeypatch, tally, precision
     assert gw.iterations() == 0
 
 
-@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-10), ("mixed", 1e-2)])
+@pytest.mark.parametrize("precision, tol", [("float64", 1e-10), ("float32", 1e-10), ("float32", 1e-2)])
 def test_an_unconverged_solve_fails_at_the_read(rng, precision, tol):
     """Past ``maxiter`` a solve (ne = 2) counts a failure on the device; ``iterations``
     raises ``StepFailure`` naming the iterations and the residual, and the counters start

@@ -152,7 +152,7 @@ def test_semi_implicit_conserves_mass_to_round_off(dt):
 # -- the steps' Helmholtz solves: host reads and graphs -----------------------------------
 
 
-def _steps(monkeypatch, stepper, device="cpu", threads=1, precision="double", tally=None):
+def _steps(monkeypatch, stepper, device="cpu", threads=1, precision="float64", tally=None):
     """Three steps of ``stepper`` (TC5, ne = 4, 8x the scene step, one rank): (final state,
     Helmholtz iterations a step, host reads in the third step (``tally``), the solves'
     graphs after the second and the third step)."""
@@ -201,7 +201,7 @@ def test_the_per_node_layouts_solves_are_captured_as_the_cpus(monkeypatch, stepp
     assert per_node == its and min(its) > 5
 
 
-@pytest.mark.parametrize("precision", ["double", "mixed"])
+@pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("stepper", ["semi_implicit", "imex", "implicit"])
 def test_graphed_solves_have_the_bits_of_host_loops(monkeypatch, stepper, precision):
     """The solves as Warp CPU graphs (one thread: ``wp.capture_while`` loops, nested for
@@ -212,6 +212,21 @@ def test_graphed_solves_have_the_bits_of_host_loops(monkeypatch, stepper, precis
     assert graphs1[1] > 0 and graphs2[1] == 0
     assert its1 == its2 and min(its1) > 5
     assert np.array_equal(x1, x2)
+
+
+@pytest.mark.parametrize("old, new", [("double", "float64"), ("mixed", "float32")])
+def test_the_old_precision_words_are_the_new_ones_after_a_warning(monkeypatch, old, new):
+    """Issue 124: the Helmholtz solve's precision in [numerics] precision's words, "float64" and
+    "float32" (the model's one dtype path, ``precision_dtype``); the old "double" and "mixed" still
+    taken (a deprecation, one line) as the new word: the same options and the same bits."""
+    with pytest.warns(
+        DeprecationWarning, match=rf'^precision "{old}" is deprecated: "{new}", as \[numerics\] precision$'
+    ):
+        assert HelmholtzOptions(precision=old) == HelmholtzOptions(precision=new)
+    with pytest.warns(DeprecationWarning):
+        x_old, its_old, _, _ = _steps(monkeypatch, "semi_implicit", precision=old)
+    x_new, its_new, _, _ = _steps(monkeypatch, "semi_implicit", precision=new)
+    assert its_old == its_new and min(its_new) > 5 and np.array_equal(x_old, x_new)
 
 
 @requires_cuda
@@ -268,13 +283,13 @@ def test_the_helmholtz_options_are_one_declaration(stepper):
     cls = STEPPERS[stepper]
     assert issubclass(cls.Options, HelmholtzOptions)
     o = cls.make_options()
-    assert (o.maxiter, o.mean_depth, o.precision, o.guess_history) == (500, 0.0, "double", 8)
+    assert (o.maxiter, o.mean_depth, o.precision, o.guess_history) == (500, 0.0, "float64", 8)
     assert o.tol == (1e-7 if stepper == "semi_implicit" else 1e-6)
     for key, value, message in (
         ("tol", 1.0, "tol must be in (0, 1)"),
         ("maxiter", 0, "maxiter must be >= 1"),
         ("mean_depth", -5.0, "mean_depth must be >= 0"),
-        ("precision", "single", "precision must be one of double, mixed"),
+        ("precision", "single", "precision must be one of float64, float32"),
         ("guess_history", 33, "guess_history must be in 0..32"),
     ):
         with pytest.raises(ValueError, match=re.escape(f"{message} (got {value!r})")):

@@ -8,8 +8,8 @@ Each tracer's mixing ratio q = hq / h in an element is moved, keeping the elemen
 clipped to it and the mass they held spread over the nodes still inside, in proportion to c,
 until no mass is left over (a bound the element's mean lies beyond is moved to the mean: the
 problem's only feasible point). ``limit_stage`` limits an explicit stage's element-local values
-before their DSS (HOMME's ``euler_step``), ``limit_element`` an assembled state's. Dim nelem;
-``offset`` counts elements.
+before their DSS (HOMME's ``euler_step``), or an assembled state's (its only term the state).
+Dim nelem; ``offset`` counts elements.
 """
 
 import functools
@@ -120,32 +120,6 @@ def limit_into(
                     out[k, p] = q + extra / room
 
 
-@wp.kernel
-def limit_element(
-    x: wp.array2d(dtype=f64),
-    spheremp: wp.array(dtype=f64),
-    bounds: wp.array2d(dtype=f64),
-    npp: int,
-    iterations: int,
-    tol: f64,
-    c: wp.array(dtype=f64),
-    out: wp.array2d(dtype=f64),
-    offset: int,
-):
-    """out[k] = h·q̃ of tracer k of the assembled state x, q̃ its q = x[3 + k] / x[2] limited into
-    [bounds[2k, e], bounds[2k + 1, e]] keeping Σ c q (c = spheremp·h, written into ``c``)."""
-    e = wp.tid() + offset
-    base = e * npp
-    for p in range(base, base + npp):
-        c[p] = spheremp[p] * x[2, p]
-        for k in range(out.shape[0]):
-            out[k, p] = x[3 + k, p] / x[2, p]
-    for k in range(out.shape[0]):
-        limit_into(out, k, base, npp, c, bounds[2 * k, e], bounds[2 * k + 1, e], iterations, tol)
-        for p in range(base, base + npp):
-            out[k, p] = out[k, p] * x[2, p]
-
-
 @functools.cache
 def limit_stage(weighted: bool, first: int = 0):
     """The kernel limiting an explicit stage's element-local values before their DSS (HOMME's
@@ -155,7 +129,8 @@ def limit_stage(weighted: bool, first: int = 0):
     tend = spheremp·F_e) at its nodes, whose mass-weighted DSS is the update; out[k] = h·q̃ of
     tracer k, q̃ its q = v_k / h limited into its bounds keeping Σ c q (c = spheremp·h, written
     into ``c``). The DSS of out then takes the stage's values: at a node a convex combination of
-    its copies' q̃ (weights spheremp·h of each, h > 0). h = v[2], v_k = v[3 + k]: tend's rows are
+    its copies' q̃ (weights spheremp·h of each, h > 0); a = (1, 0, 0) and s₀ an assembled state:
+    that state's values limited. h = v[2], v_k = v[3 + k]: tend's rows are
     the state's from ``first`` (0: the tendency's; 2: the ∇⁴'s of h and the tracers alone,
     ``model.hyperviscosity.Hyperviscosity.build_tracers``). Arguments: a (vec3), s₀, s₁ (rows, N;
     a₁ = 0: s₁ unread but any), tend, mass, spheremp, bounds, npp, iterations, tol, c, hv (N: h

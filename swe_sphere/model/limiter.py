@@ -78,8 +78,12 @@ class TracerLimiter:
         """Limit x's tracer masses (rows 3..) in place into the bounds ``bound`` took last."""
         m = self.model
 
-        def build():
-            args = [x, m.spheremp, *self._limits(), self.work]
-            return [m.launches.elements(limiter.limit_element, args), *m.topology.dss(self.work, True, x[3:])]
+        def build():  # the stage kernel on x alone (its weights a = (1, 0, 0): x's own values)
+            args = [wp.vec3d(1.0, 0.0, 0.0), x, x, x, m.tendency_arrays.mass, m.spheremp, *self._limits()]
+            kernel = limiter.limit_stage(False)
+            return [
+                m.launches.elements(kernel, [*args, self.depth, self.work]),
+                *m.topology.dss(self.work, True, x[3:]),
+            ]
 
         m.launches.replay(("limiter", x.ptr), (x,), build)

@@ -108,16 +108,17 @@ def limit_into(
                 out[k, p] = lo
         if wp.abs(extra) <= tol * wp.abs(mass):
             it = iterations  # the last spread, of at most tol of the mass: kept, not dropped (a bias else)
-        room = f64(0.0)  # the weight of the nodes that can take it
-        for p in range(base, base + npp):
-            q = out[k, p]
-            if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
-                room += c[p]
-        if room > f64(0.0):
+        if extra != f64(0.0):  # nothing clipped (most elements): nothing to spread, done
+            room = f64(0.0)  # the weight of the nodes that can take it
             for p in range(base, base + npp):
                 q = out[k, p]
                 if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
-                    out[k, p] = q + extra / room
+                    room += c[p]
+            if room > f64(0.0):
+                for p in range(base, base + npp):
+                    q = out[k, p]
+                    if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
+                        out[k, p] = q + extra / room
 
 
 @functools.cache

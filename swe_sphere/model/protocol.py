@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 21 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 24 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -13,7 +13,10 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   and the step plans, ``hv`` (the ``Hyperviscosity``: its plan, coefficients and operator; None
   without the term);
 - **states**: ``new_state``, ``lincomb`` (out = Σ c·x, recorded), ``pointwise`` (a pointwise
-  kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes);
+  kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes), and the
+  state a step's stages carry: ``state_dtype`` (float64, or float32 under "float32_state"),
+  ``to_step_state`` and ``from_step_state`` (the float64 state to it at a step's start and back
+  at its end);
 - **the implicit split**: ``implicit_terms`` (L, the linear gravity-wave terms about a mean depth,
   a ``GravityWaveOperator``) and ``implicit_inverse`` ((I − aL)⁻¹, a ``HelmholtzSolver`` about it),
   which the steppers that treat L apart ask for and do not build;
@@ -50,6 +53,7 @@ class SteppingModel(Protocol):
     rows: int  # a state's rows: u, v, h and a tracer mass hq each (3 + the model's tracers)
     limiter: object  # ``model.limiter.TracerLimiter`` of the tracers, or None
     g: float
+    state_dtype: object  # the Warp float type a step's stages hold (``precision.state_dtype``)
     recorder: object  # None, or a gradient's tape (``adjoint.tape.Tape``) the operators built on it write on
 
     def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None: ...
@@ -62,6 +66,8 @@ class SteppingModel(Protocol):
     def new_state(self, u=None, v=None, h=None) -> wp.array2d: ...
     def lincomb(self, out, terms): ...
     def pointwise(self, kernel, *inputs, unique: bool = False) -> None: ...
+    def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None: ...
+    def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None: ...
 
 
 def members() -> set[str]:

@@ -24,7 +24,7 @@ from ..core.constants import EARTH
 from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
-from ..kernels import operators, tendencies
+from ..kernels import departure, operators, tendencies
 from .bad_nodes import BadNodes
 from .element_operators import ElementOperators
 from .filter import ElementFilter
@@ -554,6 +554,18 @@ class ShallowWater:
         ``implicit_terms`` about ``options.mean_depth``) with the solve's ``options``; ``warm``:
         its solves start from the last (or the projection on past) solutions."""
         return HelmholtzSolver(self.implicit_terms(options.mean_depth) if linear is None else linear, options, warm)
+
+    # -- the float32 state (``precision = "float32_state"``: ``kernels.departure``) ---------------
+    def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None:
+        """y (3, N, ``state_dtype``) = the state a step's stages carry of x (3, N float64): u, v
+        and h − H₀ rounded once to float32 (``kernels.departure.to_departure``)."""
+        self.pointwise(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
+
+    def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None:
+        """x (3, N float64) from a step's float32 state y at the step's end: the step's increment
+        y − ``to_step_state``(x) added in float64 (``compensated``), or y + H₀."""
+        kernel = departure.add_increment if self.compensated else departure.from_departure
+        self.pointwise(kernel, y, f64(self.tendency_arrays.depth), x)
 
     def new_state(self, u=None, v=None, h=None, masses=None) -> wp.array2d:
         """A (rows, N) device state from element-local numpy rows (zeros where None); ``masses``

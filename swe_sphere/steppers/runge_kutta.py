@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from ..core.constants import DAY
-from ..kernels import blas, departure
+from ..kernels import blas
 from ..model.helmholtz import HelmholtzOptions
 from ..model.launches import Update
 from .base import Stepper, StepStats, device_counts, work_array
@@ -75,10 +75,9 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     combination fewer than its accumulator form).
 
     Under the model's ``precision = "float32_state"`` the stages run on a float32 state y
-    (u, v, h − H₀: ``kernels.departure.to_departure`` of x at the step's start) in float32
-    buffers, and the step's end gives y back to x (``add_increment``, compensated, or
-    ``from_departure``: the model's ``compensated``) before the ∇⁴, which acts on x as under
-    "float32".
+    (u, v, h − H₀: ``ShallowWater.to_step_state`` of x at the step's start) in float32
+    buffers, and the step's end gives y back to x (``ShallowWater.from_step_state``: compensated
+    or rounded) before the ∇⁴, which acts on x as under "float32".
     """
 
     explicit = capturable = variable_dt = differentiable = True
@@ -202,11 +201,6 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     def _dt_changed(self):
         self._x = None  # the stages' coefficients made again with the new Δt (the model's launches take them in place)
 
-    def _departed(self, x, kernel) -> None:
-        """The float32 state's conversion ``kernel`` (``kernels.departure``) between it and x."""
-        pair = (x, self._y) if kernel is departure.to_departure else (self._y, x)
-        self.model.pointwise(kernel, pair[0], f64(self.model.tendency_arrays.depth), pair[1])
-
     def advance(self, x):
         y = x if self._y is None else self._y  # the state the stages step
         if self._x is not y:
@@ -216,7 +210,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
             limiter.bound(x)
         if self._carried is None:
             if y is not x:
-                self._departed(x, departure.to_departure)
+                self.model.to_step_state(x, y)
             for (c, arg, updates), limit in zip(self._stages, self._limited, strict=True):
                 self._at(c)
                 if limit:  # the stage's tracers limited before their DSS (a model with a limiter)
@@ -224,7 +218,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
                 else:
                     self.model.rhs_update(arg, updates)
             if y is not x:
-                self._departed(x, departure.add_increment if self.model.compensated else departure.from_departure)
+                self.model.from_step_state(y, x)
             self._hyperviscosity(x)
             if limiter is not None:
                 limiter.apply(x)

@@ -59,7 +59,7 @@ def test_a_lake_at_rest_stays_at_rest_to_the_bit(per_element):
     stepper = make_stepper("rk4", model, 600.0)
     for _ in range(20):
         stepper.step(x)
-    assert stepper._y.dtype == wp.float32 and all(b.dtype == wp.float32 for b in stepper._buffers.values())
+    assert model.state_dtype == wp.float32
     assert np.array_equal(x.numpy(), before)
 
 

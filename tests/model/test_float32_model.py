@@ -121,16 +121,18 @@ def test_a_float32_run_keeps_float64_s_error_and_mass():
     assert abs(d64["mass_change"]) <= r64.steps * 10 * np.finfo(float).eps
 
 
-def test_a_float32_run_continues_bitwise(tmp_path):
-    """A float32 run stopped at day 0.1 and continued to 0.2 ends with the uninterrupted run's
-    bits (the restart keeps its precision: the run file says float32)."""
-    common = ["run", "tc5_mountain", "--ne", "2", "--stepper", "kgu35", "--precision", "float32", "--no-progress"]
+@pytest.mark.parametrize("precision", ["float32", "float32_state"])
+def test_a_float32_run_continues_bitwise(tmp_path, precision):
+    """A float32 run (mixed, or its state in float32) stopped at day 0.1 and continued to 0.2
+    ends with the uninterrupted run's bits: the restart keeps its precision (the run file says
+    which), and the float64 state between steps is the whole of what a step starts from."""
+    common = ["run", "tc5_mountain", "--ne", "2", "--stepper", "kgu35", "--precision", precision, "--no-progress"]
     assert main([*common, "--days", "0.2", "--output", str(tmp_path / "whole.nc")]) == 0
     half = ["--days", "0.1", "--restart-every", "0.1", "--output", str(tmp_path / "half.nc")]
     assert main([*common, *half]) == 0
     rest = ["run", "--continue", str(tmp_path / "half.restart.nc"), "--days", "0.2", "--no-progress"]
     assert main([*rest, "--output", str(tmp_path / "rest.nc")]) == 0
     with xr.open_dataset(tmp_path / "whole.nc") as a, xr.open_dataset(tmp_path / "rest.nc") as b:
-        assert a.attrs["precision"] == b.attrs["precision"] == "float32"
+        assert a.attrs["precision"] == b.attrs["precision"] == precision
         for name in ("h", "u", "v"):
             assert np.array_equal(a[name].isel(time=-1).values, b[name].isel(time=-1).values), name

@@ -5,10 +5,8 @@ mixed float32's, and a continuation that has the uninterrupted run's bits."""
 import numpy as np
 import pytest
 import warp as wp
-import xarray as xr
 
 from swe_sphere import Simulation
-from swe_sphere.cli import main
 from swe_sphere.kernels import departure
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
@@ -86,18 +84,3 @@ def test_a_float32_state_run_keeps_float64_s_error_and_bounds_its_mass():
         assert abs(d32["l2_h"] - d64["l2_h"]) <= 1e-3 * d64["l2_h"]
         assert 0 < np.abs(h32 - h64).max() <= r32.steps * 0.1 * EPS32 * np.abs(h64).max()
         assert 0 < abs(d32["mass_change"]) <= r32.steps * 1e-3 * EPS32
-
-
-def test_a_float32_state_run_continues_bitwise(tmp_path):
-    """A float32-state run stopped at day 0.1 and continued to 0.2 ends with the uninterrupted
-    run's bits: the float64 state between steps is the whole of what a step starts from."""
-    common = ["run", "tc5_mountain", "--ne", "2", "--stepper", "kgu35", "--precision", "float32_state", "--no-progress"]
-    assert main([*common, "--days", "0.2", "--output", str(tmp_path / "whole.nc")]) == 0
-    half = ["--days", "0.1", "--restart-every", "0.1", "--output", str(tmp_path / "half.nc")]
-    assert main([*common, *half]) == 0
-    rest = ["run", "--continue", str(tmp_path / "half.restart.nc"), "--days", "0.2", "--no-progress"]
-    assert main([*rest, "--output", str(tmp_path / "rest.nc")]) == 0
-    with xr.open_dataset(tmp_path / "whole.nc") as a, xr.open_dataset(tmp_path / "rest.nc") as b:
-        assert a.attrs["precision"] == b.attrs["precision"] == "float32_state"
-        for name in ("h", "u", "v"):
-            assert np.array_equal(a[name].isel(time=-1).values, b[name].isel(time=-1).values), name

@@ -85,11 +85,9 @@ class Members:
             )
             self.units, self.layout, self.scorer, self.nnodes = [unit], "shared", [scorer], topo.nnodes_total
             self.root = topo.comm.rank == 0
-            self.hs, self.fcor, self.g = (
-                None if hs is None else hs[None],
-                None if fcor is None else fcor[None],
-                [unit.model.g],
-            )
+            # the whole grid's hs and f on rank 0 alone (gathered), a member's axis added
+            self.hs, self.fcor = (None, None) if hs is None else (hs[None], fcor[None])
+            self.g = [unit.model.g]
         else:
             self._build(scene, members, start, backend, graphs, layout, **options)
         self.unit_held = [self.held] if self.layout == "shared" else list(self.held[:, None])

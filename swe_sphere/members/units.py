@@ -107,11 +107,8 @@ def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: s
     scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
     dfi = None
     if start is None:
-        start = (
-            np.stack(case.initial(local.lat, local.lon))
-            if initial is None
-            else from_function(initial, local.lat, local.lon)
-        )
+        lat, lon = local.lat, local.lon
+        start = np.stack(case.initial(lat, lon)) if initial is None else from_function(initial, lat, lon)
         if scene.digital_filter is not None:
             dfi = digital_filter(
                 scene.digital_filter, start, grid=local, terms=scene.terms, fcor=fcor, hs=hs, g=model.g, topology=topo

@@ -172,16 +172,8 @@ class RunFiles:
             if (final or is_due(at, run)) and self.last[i] != step:
                 self.last[i] = step
                 if self.writers:  # rank 0's
-                    self.writers[i].append(
-                        day,
-                        whole.u,
-                        whole.v,
-                        whole.h,
-                        series,
-                        vorticity=whole.vorticity,
-                        divergence=whole.divergence,
-                        masses=whole.masses,
-                    )
+                    more = {k: getattr(whole, k) for k in ("vorticity", "divergence", "masses")}
+                    self.writers[i].append(day, whole.u, whole.v, whole.h, series, **more)
 
     def __call__(self, owner) -> None:
         self.record()

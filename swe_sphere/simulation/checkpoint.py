@@ -141,11 +141,8 @@ def continued(checkpoint, days, stepper=None, dt=None, comm=None, members: bool 
             "with Simulation.from_checkpoint(..., members=True) (swe-sphere run --continue does)"
         )
     start = ON_ROOT if ck.x is None else ck.x  # ranks > 0 of ``read_on_root`` have no arrays
-    other = [
-        f"{k} = {v!r}"
-        for k, v, own in (("stepper", stepper, ck.scene.stepper), ("dt", dt, ck.scene.dt))
-        if v not in (None, own)
-    ]
+    asked = (("stepper", stepper, ck.scene.stepper), ("dt", dt, ck.scene.dt))  # (name, given, the file's)
+    other = [f"{k} = {v!r}" for k, v, own in asked if v not in (None, own)]
     if other and members:  # the command line's rule (run --continue with --stepper or --dt) too
         raise SceneError(
             f"{' and '.join(other)}: an ensemble continues with its own stepper and dt (no branches yet; "
@@ -186,14 +183,6 @@ def write_restart(path, run, x, state: dict, initial: dict, grid, **kept) -> Pat
     return restart_file.write(
         path, run.scene, run.step, x, state, run.counters, initial, grid=grid, control=control, **kept
     )
-
-
-def member_starts(ck) -> tuple:
-    """(states (N, 3, n), or the file's ``Variants``) an ensemble's checkpoint ``ck`` starts its
-    members from, and its layout and blow-up policy, as ``Members`` takes them."""
-    variants = ck.initial.get("variants")  # the members' own scenes, then the file's states
-    start = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else Variants(variants)
-    return start, ck.initial.get("layout", "shared"), ck.initial.get("blow_up", "stop")
 
 
 def from_checkpoint(
@@ -256,9 +245,11 @@ def from_checkpoint(
     ck, scene, start, initial, whole = continued(checkpoint, days, stepper, dt, comm, members=members)
     kw = {"progress": progress, "comm": comm, "graphs": graphs}
     if members:
-        states, layout, policy = member_starts(ck)
-        both = {"layout": layout, "blow_up": policy, "per_element": per_element, "threads": threads}
-        sim = cls(scene, device=device, members=ck.members, initial=states, **kw, **both)
+        # the file's states, or its Variants (the members' own scenes), its layout and blow-up policy
+        variants, kept = ck.initial.get("variants"), ck.initial
+        states = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else Variants(variants)
+        both = {"layout": kept.get("layout", "shared"), "blow_up": kept.get("blow_up", "stop"), "threads": threads}
+        sim = cls(scene, device=device, members=ck.members, initial=states, per_element=per_element, **kw, **both)
         sim.restore(ck)
     else:
         sim = cls(scene, device=device, start=start, initial_diagnostics=initial, **kw)

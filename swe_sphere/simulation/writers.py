@@ -49,25 +49,18 @@ def opening(d, files, start, history: str | None, name: str, dfi, device: str) -
     MPI ranks), from which start (the digital filter ``dfi`` or None; members: ``initial_states``), its
     command line (``history``), a single run's Courant numbers at the start and a branch's origin."""
     s, run = d.run.scene, d.run
-    more = {**run.stepper.attrs(), "device": device}  # e.g. which Butcher table ran
+    kind, caller = ("ensemble", name) if d.members else ("run", "swe_sphere.Simulation.run")
+    # what ran, then e.g. which Butcher table ran and where
+    attrs = {**scene_attrs(s, kind, history, caller), **run.stepper.attrs(), "device": device}
     again = {"continued_from_day": run.time} if run.step else {}
     if d.members:
         first = d.diagnose(run.seconds(run.step), whole=start)
         files.member_series = tuple(first)
-        attrs = {
-            **scene_attrs(s, "ensemble", history, name),
-            **more,
-            "ensemble_layout": d.layout,
-            "members": d.members,
-            "initial_states": d.initial_states,
-            "blow_up_policy": POLICIES[d.blow_up],
-            **again,
-        }
+        attrs |= {"ensemble_layout": d.layout, "members": d.members, "initial_states": d.initial_states}
+        attrs |= {"blow_up_policy": POLICIES[d.blow_up], **again}
         return {}, first, attrs, {"members": d.members, "member_series": files.member_series}
     courant = d.bcast(d.courant_at(start.u, start.v, start.h, d.g[0]) if d.root else None)
-    attrs = {
-        **scene_attrs(s, "run", history, "swe_sphere.Simulation.run"),
-        **more,
+    attrs |= {
         "mpi_ranks": d.topology.comm.size,
         "initialization": "none" if s.initialization is None else s.initialization["method"],
         "reference": truth(d.case, s.reference_file),  # what the error series are against

@@ -5,6 +5,7 @@ members squeezed or handed on, and a property of the one member that N > 1 membe
 from __future__ import annotations
 
 import functools
+from operator import attrgetter
 
 from ..core.errors import ArgumentError
 
@@ -28,10 +29,8 @@ def delegated(method, owner):
 def squeezed(method):
     """A simulation's method that is its members' (``Members``) method of ``method``'s name, its
     answer squeezed (``squeeze``), whose doc it has."""
-    name = method.__name__
-    return functools.wraps(method)(
-        lambda sim, *a, **kw: squeeze(len(sim.members), getattr(sim.members, name)(*a, **kw))
-    )
+    call = delegated(method, attrgetter("members"))
+    return functools.wraps(method)(lambda sim, *a, **kw: squeeze(len(sim.members), call(sim, *a, **kw)))
 
 
 def of_one(name: str, attr: str, doc: str, units: bool = False) -> property:

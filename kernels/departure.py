@@ -11,6 +11,9 @@ float32 step's increment y(n+1) − y(n), exact in float64, added to the float64
 bits carry what float32 rounded off, as Kahan's compensated sum carries it: Klöwer et al. 2022's
 compensated time integration).
 
+The global mass fixer's kernels (``model.mass_fixer``): each element's mass Σ spheremp·h
+(``element_mass``) and the depth moved by the mass lost (``restore_mass``).
+
 Pointwise over (rows, N) as ``blas``: ``block`` consecutive nodes a thread, ``offset`` in blocks;
 row 2 is h.
 """
@@ -63,3 +66,31 @@ def add_increment(
     for p in range(start, start + block):
         before = f64(f32(x[r, p] - s))
         x[r, p] = x[r, p] + (f64(y[r, p]) - before)
+
+
+@wp.kernel(enable_backward=False)
+def element_mass(
+    x: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), block: int, slot: int, out: wp.array2d(dtype=f64),
+    offset: int,
+):  # fmt: skip
+    """out[slot, e] = Σ spheremp·h (m³) over element e's ``block`` = np² nodes, in their order:
+    the same bits for an element whatever the ranks (HOMME ``global_integral``'s element sums).
+    Dim nelem (``offset`` in elements)."""
+    e = wp.tid() + offset
+    s = f64(0.0)
+    for p in range(e * block, (e + 1) * block):
+        s += spheremp[p] * x[2, p]
+    out[slot, e] = s
+
+
+@wp.kernel(enable_backward=False)
+def restore_mass(x: wp.array2d(dtype=f64), totals: wp.array(dtype=f64), area: f64, block: int, offset: int):
+    """h += (totals[0] − totals[1]) / area: the mass lost between the two totals (m³) spread
+    over the sphere's area (m²) by weight spheremp, a uniform depth (every copy of a node moved
+    alike: h stays continuous). Dim (rows, N/block); rows other than h untouched."""
+    r, k = wp.tid()
+    if r == 2:
+        d = (totals[0] - totals[1]) / area
+        start = (k + offset) * block
+        for p in range(start, start + block):
+            x[2, p] = x[2, p] + d

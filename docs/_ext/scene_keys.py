@@ -144,6 +144,11 @@ KEYS = {
         'under "float32_state": a step\'s float32 increment added to the float64 state in float64 (true), '
         "or the state rounded to the float32 one (false)",
     ),
+    "numerics.mass_fixer": (
+        "true",
+        'under "float32_state": each step\'s end puts back the mass its start held, spread over the sphere '
+        "by weight spheremp (a uniform depth), from float64 sums",
+    ),
     "tracers.names": ("none", "the tracers' names: distinct identifiers, each a variable of the run file (q, units 1)"),
     "tracers.limiter": (
         '"none"',

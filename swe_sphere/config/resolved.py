@@ -103,6 +103,9 @@ class Scene:
     compensated : bool
         [numerics] compensated: under "float32_state", whether a step's float32 increment is
         added to the float64 state in float64 (True, the default); unread otherwise.
+    mass_fixer : bool
+        [numerics] mass_fixer: under "float32_state", whether a step's end puts back the mass
+        its start held (True, the default: ``model.mass_fixer``); unread otherwise.
     tracers : tuple of (str, str)
         [tracers]: each passive tracer's name and its initial field, bundled
         (``cases.tracers.TRACER_FIELDS``) or a variable of ``tracer_file``, carried as hq in the
@@ -170,6 +173,7 @@ class Scene:
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type (and "float32_state": the state's)
     compensated: bool = True  # [numerics] compensated: the float32 state's increments added in float64
+    mass_fixer: bool = True  # [numerics] mass_fixer: the float32 state's mass put back each step
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
     tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)
     tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
@@ -308,6 +312,8 @@ class Scene:
             del d["precision"]
         if d["compensated"]:  # the default, likewise
             del d["compensated"]
+        if d["mass_fixer"]:  # the default, likewise
+            del d["mass_fixer"]
         if not d["tracers"]:  # none: a scene's dict as before the key
             del d["tracers"]
         if d["tracer_file"] is None:  # the default, likewise

@@ -75,7 +75,9 @@ the run length, the output interval and the hyperviscosity. Layout::
                       (``Described.float32_refusal``) | "float32_state" (a step's state and
                       stages float32 too: the explicit Runge-Kutta steppers, a fixed dt),
                       compensated = true | false (the float32 state's increments added in
-                      float64, or the state rounded: ``Scene.compensated``)
+                      float64, or the state rounded: ``Scene.compensated``),
+                      mass_fixer = true | false (the float32 state's mass put back each step:
+                      ``Scene.mass_fixer``)
 
 Every problem raises ``SceneError`` (a ValueError) with a one-line message
 naming the offending key or value.
@@ -333,6 +335,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
         compensated=bool(s.get("numerics", {}).get("compensated", True)),
+        mass_fixer=bool(s.get("numerics", {}).get("mass_fixer", True)),
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
         tracer_file=resolve_tracer_file(s.get("tracers", {}), path),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),

@@ -151,8 +151,8 @@ SCHEMA = {
     "ensemble": {"members": int, "perturbation": float, "seed": int, "degrees": tuple},
     "planet": {"radius": float, "omega": float, "gravity": float},
     # the tendency's (and "float32_state": the state's) float type; the float32 state's increments
-    # compensated (``resolve.resolve_precision``)
-    "numerics": {"precision": str, "compensated": bool},
+    # compensated, its mass fixed (``resolve.resolve_precision``)
+    "numerics": {"precision": str, "compensated": bool, "mass_fixer": bool},
     # passive tracers: names, their initial fields (bundled, or a file's variables), the limiter (``resolve_tracers``, ``resolve_limiter``)
     "tracers": {"names": list, "initial": list, "limiter": str, "hyperviscosity": bool, "file": str},
     # one table per stepper, named after it, with the stepper's own options

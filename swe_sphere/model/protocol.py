@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 24 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 25 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -16,7 +16,8 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes), and the
   state a step's stages carry: ``state_dtype`` (float64, or float32 under "float32_state"),
   ``to_step_state`` and ``from_step_state`` (the float64 state to it at a step's start and back
-  at its end);
+  at its end), ``restore_mass`` (the mass the start held put back after the end's ∇⁴: the float32
+  state's mass fixer);
 - **the implicit split**: ``implicit_terms`` (L, the linear gravity-wave terms about a mean depth,
   a ``GravityWaveOperator``) and ``implicit_inverse`` ((I − aL)⁻¹, a ``HelmholtzSolver`` about it),
   which the steppers that treat L apart ask for and do not build;
@@ -68,6 +69,7 @@ class SteppingModel(Protocol):
     def pointwise(self, kernel, *inputs, unique: bool = False) -> None: ...
     def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None: ...
     def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None: ...
+    def restore_mass(self, x: wp.array2d) -> None: ...
 
 
 def members() -> set[str]:

@@ -33,6 +33,7 @@ from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .launches import LaunchRecorder, check_updates
 from .limiter import LIMITERS, TracerLimiter
+from .mass_fixer import MassFixer
 from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype
 
 TERMS = (
@@ -157,6 +158,8 @@ class ShallowWater:
     compensated : under "float32_state", whether a step's float32 increment is added to the
         float64 state in float64 (True, the default: compensated) or the state rounded to the
         float32 one (False; ``kernels.departure``); unread otherwise.
+    mass_fixer : under "float32_state", whether a step's end puts back the mass ∫h its start
+        held (True, the default: ``model.mass_fixer``); unread otherwise.
     depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
         (no shift); ``from_case`` gives the midpoint of its initial depth's extremes.
     tracers : K ≥ 0 passive tracers (``from_scene``: the scene's [tracers]), carried as their
@@ -218,6 +221,7 @@ class ShallowWater:
         forcing=None,
         precision="float64",
         compensated=True,
+        mass_fixer=True,
         depth=None,
         tracers=0,
         limiter="none",
@@ -278,6 +282,8 @@ class ShallowWater:
         self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
         self.precision = precision
         self.state_dtype, self.compensated = state_dtype(precision), bool(compensated)
+        # the float32 state's global mass fixer (None: none)
+        self.mass_fixer = MassFixer(self) if mass_fixer and self.state_dtype is not f64 else None
         # what the tendency kernels read and write, in the precision's float type
         depth = 0.0 if depth is None else number_argument("depth", depth, "m")
         self.tendency_arrays = TendencyArrays.of(
@@ -342,6 +348,7 @@ class ShallowWater:
         }
         options.setdefault("precision", scene.precision)
         options.setdefault("compensated", scene.compensated)
+        options.setdefault("mass_fixer", scene.mass_fixer)
         options.setdefault("tracers", len(scene.tracers))
         options.setdefault("limiter", scene.tracer_limiter)
         options.setdefault("tracer_hyperviscosity", scene.tracer_hyperviscosity)
@@ -558,14 +565,24 @@ class ShallowWater:
     # -- the float32 state (``precision = "float32_state"``: ``kernels.departure``) ---------------
     def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None:
         """y (3, N, ``state_dtype``) = the state a step's stages carry of x (3, N float64): u, v
-        and h − H₀ rounded once to float32 (``kernels.departure.to_departure``)."""
+        and h − H₀ rounded once to float32 (``kernels.departure.to_departure``); x's mass taken
+        for ``from_step_state`` to put back (``mass_fixer``)."""
         self.pointwise(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
+        if self.mass_fixer is not None:
+            self.mass_fixer.measure(x)
 
     def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None:
         """x (3, N float64) from a step's float32 state y at the step's end: the step's increment
         y − ``to_step_state``(x) added in float64 (``compensated``), or y + H₀."""
         kernel = departure.add_increment if self.compensated else departure.from_departure
         self.pointwise(kernel, y, f64(self.tendency_arrays.depth), x)
+
+    def restore_mass(self, x: wp.array2d) -> None:
+        """At a float32 state's step's end (after its ∇⁴, whose float32 Laplacians round too):
+        x's depth moved uniformly to the mass ∫h that ``to_step_state`` took (``mass_fixer``);
+        nothing without the fixer."""
+        if self.mass_fixer is not None:
+            self.mass_fixer.restore(x)
 
     def new_state(self, u=None, v=None, h=None, masses=None) -> wp.array2d:
         """A (rows, N) device state from element-local numpy rows (zeros where None); ``masses``

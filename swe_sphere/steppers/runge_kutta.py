@@ -77,7 +77,8 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     Under the model's ``precision = "float32_state"`` the stages run on a float32 state y
     (u, v, h − H₀: ``ShallowWater.to_step_state`` of x at the step's start) in float32
     buffers, and the step's end gives y back to x (``ShallowWater.from_step_state``: compensated
-    or rounded) before the ∇⁴, which acts on x as under "float32".
+    or rounded) before the ∇⁴, which acts on x as under "float32"; after it the mass fixer puts
+    back the mass x held at the start (``ShallowWater.restore_mass``).
     """
 
     explicit = capturable = variable_dt = differentiable = True
@@ -220,6 +221,8 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
             if y is not x:
                 self.model.from_step_state(y, x)
             self._hyperviscosity(x)
+            if y is not x:
+                self.model.restore_mass(x)
             if limiter is not None:
                 limiter.apply(x)
             return StepStats(len(self._stages))

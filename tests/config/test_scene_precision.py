@@ -49,7 +49,7 @@ def test_float32_from_an_override_a_keyword_a_table_and_a_file(tmp_path):
         ({"overrides": {"numerics.precision": 32}}, "numerics.precision must be str (got 32)"),
         (
             {"overrides": {"numerics.dtype": "float32"}},
-            "unknown key numerics.dtype in scene (known: precision, compensated)",
+            "unknown key numerics.dtype in scene (known: precision, compensated, mass_fixer)",
         ),
         (
             {"precision": "float32", "overrides": {"numerics.precision": "half"}},
@@ -95,7 +95,8 @@ def test_the_float32_state_is_carried_by_the_explicit_runge_kutta_steppers_alone
     """``precision = "float32_state"``: a step's state and stages in float32, which only the
     explicit Runge-Kutta engine carries (``Described.float32_state_refusal``): the others refused
     in one line naming the value and the stepper, and so is step control (its estimate is read in
-    float64); ``numerics.compensated`` read with it, true by default and left out of the record."""
+    float64); ``numerics.compensated`` and ``numerics.mass_fixer`` read with it, true by default and
+    left out of the record."""
     carrying = sorted(name for name, cls in STEPPERS.items() if cls.float32_state_refusal is None)
     assert {"rk4", "ssprk3", "kgu35", "rk43"} <= set(carrying) and "leapfrog" not in carrying
     for name in carrying:
@@ -117,3 +118,6 @@ def test_the_float32_state_is_carried_by_the_explicit_runge_kutta_steppers_alone
     assert scene.compensated and "compensated" not in scene.as_dict()
     plain = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.compensated": False})
     assert not plain.compensated and plain.as_dict()["compensated"] is False
+    assert scene.mass_fixer and "mass_fixer" not in scene.as_dict()
+    free = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.mass_fixer": False})
+    assert not free.mass_fixer and free.as_dict()["mass_fixer"] is False

@@ -106,12 +106,12 @@ class Hyperviscosity:
         self._biharmonic_radius = None
         self._rkl_buffers: dict = {}  # RKL1's Y_{j−1} or Y_{j−2} beside x, by x's shape (``rkl1``)
         # the tracers' ∇⁴ (``build_tracers``): the state's rows it acts on from ``_tracer_row`` (with the
-        # limiter h's too, its element-local values the limiter's weights), its work arrays q·hs, the
-        # first weak Laplacian, its DSS Y₁, the second
+        # limiter h's too, its element-local values the limiter's weights), its work arrays the first
+        # weak Laplacian, its DSS Y₁, the second
         self._tracer_row = 2 if m.limiter is not None else 3
         rows = m.rows - self._tracer_row
         self._tracer_work = (
-            tuple(wp.zeros((rows, N), dtype=f64, device=device) for _ in range(4)) if m.tracers else None
+            tuple(wp.zeros((rows, N), dtype=f64, device=device) for _ in range(3)) if m.tracers else None
         )
 
     def build(
@@ -452,7 +452,7 @@ class Hyperviscosity:
         """Launches of one ∇⁴ evaluation of the tracers (rows 3.. of the states), before the
         depth's of the same substep or stage (``apply``): Y₂ = M⁻¹DSS(L₂), L₂ the weak Laplacian
         (the tensor's where the ∇⁴ has one) of Y₁ = M⁻¹DSS(L₁), L₁ = ν_s·the weak Laplacian of
-        hq + q·hs from ``src`` and the q·hs ``apply`` took (``kernels.tracers.tracer_laplacian``;
+        hq + q·hs from ``src`` (``kernels.tracers.tracer_laplacian``;
         HOMME ``biharmonic_wk_scalar``), then by ``mode`` with the coefficients ``c``: "add", out +=
         c₀·Y₂ (out = src); "euler", out = src + c₀·Y₂; "rkl", out = c₀·src + c₁·prev + c₂·Y₂ (an
         RKL1 stage, c = (μ, ν, μ·coef)), as the second DSS sums (``Topology.dss_update``), or with
@@ -461,7 +461,7 @@ class Hyperviscosity:
         stays 1; h itself is left to the depth's ∇⁴). out may alias src and
         prev. The launches (and the DSSs' exchanges) serve every tracer at once."""
         m = self.model
-        ops, (qhs, L1, Y1, L2) = m.operators, self._tracer_work
+        ops, (L1, Y1, L2) = m.operators, self._tracer_work
         second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
         dvv, rows, np_ = m.tendency_arrays.dvv_rows, ops.as_rows, m.grid.np
         if mode == "rkl":
@@ -471,11 +471,11 @@ class Hyperviscosity:
         launches = [
             m.launches.elements(
                 tracers_k.tracer_laplacian(True, np_, self._tracer_row),
-                [rows(src), rows(qhs), rows(self.hv_metric), dvv, m.nu_s, rows(L1)],
+                [rows(src), rows(ops.hs), rows(self.hv_metric), dvv, m.nu_s, rows(L1)],
             ),
             *m.topology.dss(L1, False, Y1),
             m.launches.elements(
-                tracers_k.tracer_laplacian(False, np_), [rows(Y1), rows(qhs), rows(second), dvv, 1.0, rows(L2)]
+                tracers_k.tracer_laplacian(False, np_), [rows(Y1), rows(ops.hs), rows(second), dvv, 1.0, rows(L2)]
             ),
         ]
         if m.limiter is not None:  # HOMME limits the tracers' biharmonic with their transport (euler_step)
@@ -502,20 +502,12 @@ class Hyperviscosity:
         Does nothing (launches nothing) with ν = ν_div = ν_s = 0. With the model's tracers (and
         ν_s ≠ 0, ``tracer_hyperviscosity``) each substep or stage is preceded by the tracers' own
         (``build_tracers``: ν_s ∇⁴ of q(h + hs), each tracer a scalar field alone, ∫hq conserved,
-        h's arithmetic where hq = h), q·hs taken once before (``kernels.tracers.tracer_surface``,
-        q of x as it comes).
+        h's arithmetic where hq = h; q·hs of the substep's or stage's own state).
         """
         m = self.model
         if self.nu_max == 0.0:
             return
         tracers = bool(m.tracers) and m.nu_s != 0.0 and m.tracer_hyperviscosity
-        if tracers:
-            surface = [x, self._tracer_row, m.operators.hs, self._tracer_work[0]]
-            m.launches.replay(
-                ("hv_tracer_surface", x.ptr),
-                (x,),
-                lambda: [m.launches.pointwise(tracers_k.tracer_surface, None, surface)],
-            )
         n, rkl = self.plan(dt)
         if rkl:
             self.rkl1(x, dt, n, tracers)

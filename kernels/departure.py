@@ -14,9 +14,14 @@ compensated time integration).
 The global mass fixer's kernels (``model.mass_fixer``): each element's mass Σ spheremp·h
 (``element_mass``) and the depth moved by the mass lost (``restore_mass``).
 
-Pointwise over (rows, N) as ``blas``: ``block`` consecutive nodes a thread, ``offset`` in blocks;
-row 2 is h.
+Each reads its arrays as lanes (``model.launches.LaunchRecorder.run_lanes``): vectors of W
+consecutive nodes (``kernels.operators.row_vectors``), an element's np² on the per-element layout
+(one vector loop a CPU thread: 3.7–5× the scalar loop's speed at np 4), one node on the per-node
+layout (a node a CUDA thread); the same bits either way. Pointwise over (rows, N/W), ``offset`` in
+lanes; row 2 is h.
 """
+
+from typing import Any
 
 import warp as wp
 
@@ -31,66 +36,51 @@ def reference(r: int, h0: f64):
 
 
 @wp.kernel(enable_backward=False)
-def to_departure(
-    x: wp.array2d(dtype=f64), h0: f64, y: wp.array2d(dtype=f32), block: int, offset: int
-):  # fmt: skip
-    """y = x − (0, 0, H₀), rounded once to float32. Dim (rows, N/block)."""
+def to_departure(x: wp.array2d(dtype=Any), h0: f64, y: wp.array2d(dtype=Any), offset: int):
+    """y = x − (0, 0, H₀), rounded once to float32 (x float64 lanes, y float32's)."""
     r, k = wp.tid()
-    s = reference(r, h0)
-    start = (k + offset) * block
-    for p in range(start, start + block):
-        y[r, p] = f32(x[r, p] - s)
+    p = k + offset
+    y[r, p] = y.dtype(x[r, p] - x.dtype(reference(r, h0)))
 
 
 @wp.kernel(enable_backward=False)
-def from_departure(
-    y: wp.array2d(dtype=f32), h0: f64, x: wp.array2d(dtype=f64), block: int, offset: int
-):  # fmt: skip
-    """x = y + (0, 0, H₀) in float64: the float32 state's value. Dim (rows, N/block)."""
+def from_departure(y: wp.array2d(dtype=Any), h0: f64, x: wp.array2d(dtype=Any), offset: int):
+    """x = y + (0, 0, H₀) in float64: the float32 state's value."""
     r, k = wp.tid()
-    s = reference(r, h0)
-    start = (k + offset) * block
-    for p in range(start, start + block):
-        x[r, p] = f64(y[r, p]) + s
+    p = k + offset
+    x[r, p] = x.dtype(y[r, p]) + x.dtype(reference(r, h0))
 
 
 @wp.kernel(enable_backward=False)
-def add_increment(
-    y: wp.array2d(dtype=f32), h0: f64, x: wp.array2d(dtype=f64), block: int, offset: int
-):  # fmt: skip
+def add_increment(y: wp.array2d(dtype=Any), h0: f64, x: wp.array2d(dtype=Any), offset: int):
     """x += y − ``to_departure``(x): the float32 step's increment, from y(n) as ``to_departure``
-    took it of this x (the same bits), added in float64. Dim (rows, N/block)."""
+    took it of this x (the same bits), added in float64."""
     r, k = wp.tid()
-    s = reference(r, h0)
-    start = (k + offset) * block
-    for p in range(start, start + block):
-        before = f64(f32(x[r, p] - s))
-        x[r, p] = x[r, p] + (f64(y[r, p]) - before)
+    p = k + offset
+    v = x[r, p]
+    before = x.dtype(y.dtype(v - x.dtype(reference(r, h0))))
+    x[r, p] = v + (x.dtype(y[r, p]) - before)
 
 
 @wp.kernel(enable_backward=False)
 def element_mass(
-    x: wp.array2d(dtype=f64), spheremp: wp.array(dtype=f64), block: int, slot: int, out: wp.array2d(dtype=f64),
+    h: wp.array(dtype=Any), spheremp: wp.array(dtype=Any), lanes: int, slot: int, out: wp.array2d(dtype=f64),
     offset: int,
 ):  # fmt: skip
-    """out[slot, e] = Σ spheremp·h (m³) over element e's ``block`` = np² nodes, in their order:
-    the same bits for an element whatever the ranks (HOMME ``global_integral``'s element sums).
-    Dim nelem (``offset`` in elements)."""
+    """out[slot, e] = Σ spheremp·h (m³) over element e's ``lanes`` lanes (its np² nodes), in
+    node order: the same bits for an element whatever the ranks and the layout (HOMME
+    ``global_integral``'s element sums). Dim nelem (``offset`` in elements)."""
     e = wp.tid() + offset
     s = f64(0.0)
-    for p in range(e * block, (e + 1) * block):
-        s += spheremp[p] * x[2, p]
+    for p in range(e * lanes, (e + 1) * lanes):
+        s += wp.dot(spheremp[p], h[p])
     out[slot, e] = s
 
 
 @wp.kernel(enable_backward=False)
-def restore_mass(x: wp.array2d(dtype=f64), totals: wp.array(dtype=f64), area: f64, block: int, offset: int):
+def restore_mass(h: wp.array(dtype=Any), totals: wp.array(dtype=f64), area: f64, offset: int):
     """h += (totals[0] − totals[1]) / area: the mass lost between the two totals (m³) spread
     over the sphere's area (m²) by weight spheremp, a uniform depth (every copy of a node moved
-    alike: h stays continuous). Dim (rows, N/block); rows other than h untouched."""
-    r, k = wp.tid()
-    if r == 2:
-        d = (totals[0] - totals[1]) / area
-        start = (k + offset) * block
-        for p in range(start, start + block):
-            x[2, p] = x[2, p] + d
+    alike: h stays continuous). Dim N/W."""
+    p = wp.tid() + offset
+    h[p] = h[p] + h.dtype((totals[0] - totals[1]) / area)

@@ -8,12 +8,12 @@ the Helmholtz ``pcg`` and the Krylov vector work of FGMRES and KIOPS in Warp ker
 while the model evaluates one RHS, one ∇⁴ and ``--steps`` steps of each
 stepper after ``--warmup`` steps, on ``--ne`` (default 8):
 
-* a launch's bytes: the capacity of each distinct array argument, once (the
-  compulsory HBM traffic when a kernel streams its arguments and the
-  re-reads within an element hit L1/L2; the per-node layout re-reads 2·np
-  nodes per point from cache). Kernels that touch some rows of an argument
-  are overcounted (schur_height), in-place updates undercounted (the write
-  of an aliased array); both are small beside the RHS and ∇⁴;
+* a launch's bytes: the capacity of each distinct array argument, once for a read and once
+  for a write as the kernel's built code marks it (``core.tally.array_bytes``: an array
+  updated in place, x += ..., both ways) (the compulsory HBM traffic when a kernel streams its
+  arguments and the re-reads within an element hit L1/L2; the per-node layout re-reads 2·np
+  nodes per point from cache). Kernels that touch some rows of an argument are overcounted
+  (schur_height, the mass fixer's depth row), small beside the RHS and ∇⁴;
 * launches: recorded (``wp.Launch.launch``) and direct (``wp.launch``)
   kernel launches, plus memsets and copies (``zero_``, ``fill_``,
   ``assign``, ``wp.copy``); host syncs: ``.numpy()`` read-backs, each of
@@ -129,6 +129,24 @@ def steppers(precision: str) -> list[str]:
     return [n for n, c in STEPPERS.items() if precision != "float32_state" or c.float32_state_refusal is None]
 
 
+# the float32 state's conversions at a step's ends (``kernels.departure``)
+CONVERSIONS = ("to_departure", "add_increment", "from_departure")
+
+
+def kept_in_float32(counts, names, points_steps) -> None:
+    """Print each stepper's B/pt a step under "float32_state" and without its two conversions
+    (``CONVERSIONS``): a state kept in float32 between steps, the loop, diagnostics and files
+    converting it only where they read it (the mass fixer's reads of the depth counted as they are,
+    of the float64 state)."""
+    print("\nThe float32 state kept between steps: B/pt a step without the conversions at its ends\n")
+    print("| stepper | B/pt/step | conversions | kept in float32 |")
+    print("|---|---:|---:|---:|")
+    for name in names:
+        bpp, by_kernel = counts[name][1], counts[name][4]
+        conv = sum(b for key, b in by_kernel.items() if key.split("__")[0] in CONVERSIONS) / points_steps
+        print(f"| {name} | {bpp:.0f} | {conv:.0f} | {bpp - conv:.0f} |")
+
+
 def cpu_check(ne, repeat):
     """Each launch of one RHS and one ∇⁴ in the CUDA layout on one CPU thread at ne:
     (kernel, CPU-clock µs median, B/pt counted, implied GB/s)."""
@@ -139,7 +157,7 @@ def cpu_check(ne, repeat):
     rows = []
     for key in (k for k in model.launches.keys() if k[0] in ("rhs", "hvop")):
         for launch in model.launches.recorded(key):
-            seen = array_bytes(launch.fwd_args)
+            seen = array_bytes(launch.fwd_args, launch.kernel)
             times = []
             for _ in range(repeat):
                 t0 = time.process_time()
@@ -263,6 +281,8 @@ def main(argv=None):
         for name in names:
             L, bpp, syncs, _, _ = counts[name]
             print(f"| {name} | {L:.0f} | {syncs:.1f} | {bpp:.0f} | {bpp / counts['rhs'][1]:.1f} |")
+        if args.precision == "float32_state":
+            kept_in_float32(counts, names[2:], N * args.steps)
 
         predictions(args, counts, names)
 

@@ -14,26 +14,62 @@ CUDA graph: a step that reads none can be captured as one.
 
 from __future__ import annotations
 
+import ast
 import collections
 import contextlib
+import functools
 
 import warp as wp
 
 
-def array_bytes(args) -> dict:
+@functools.cache
+def reads_writes(kernel) -> tuple:
+    """(read, written) for each argument of ``kernel``, from its source (the tree Warp parsed,
+    ``adj.tree``): written where a subscript of it is stored to (``a[i] = ...``; ``a[i] += ...``
+    reads it too) or it is a ``wp.atomic_*``'s array; read where it appears otherwise (an
+    expression, a call's argument: a ``wp.func`` that writes into an array it is passed counts as
+    a read), but for its type or shape (``a.dtype``, ``a.shape``)."""
+    written, read, not_read = set(), set(), set()
+    for node in ast.walk(kernel.adj.tree):
+        if isinstance(node, ast.Subscript) and isinstance(node.ctx, ast.Store) and isinstance(node.value, ast.Name):
+            written.add(node.value.id)
+            not_read.add(id(node.value))
+        elif isinstance(node, ast.Attribute) and node.attr in ("dtype", "shape"):
+            not_read.add(id(node.value))  # not the array's values
+        elif isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Subscript):
+            read.add(getattr(node.target.value, "id", None))
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", "").startswith("atomic_") and node.args:
+            written.add(getattr(node.args[0], "id", None))
+    for node in ast.walk(kernel.adj.tree):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and id(node) not in not_read:
+            read.add(node.id)
+    return tuple((v.label in read, v.label in written) for v in kernel.adj.args)
+
+
+def array_bytes(args, kernel=None) -> dict:
     """{address: bytes} of each distinct array among a launch's arguments, those
-    inside a ``wp.struct`` argument (``kernels.dss.Copies``) included."""
+    inside a ``wp.struct`` argument (``kernels.dss.Copies``) included: its capacity once for a
+    read and once for a write where ``kernel``'s source says which its argument does
+    (``reads_writes``: an array updated in place, or passed as a term and as the output, moves
+    its bytes both ways), else (no kernel, a struct's fields) once."""
 
     def fields(arg):  # a Warp struct's field names (Warp 1.19), else None
         return getattr(getattr(arg, "_cls", None), "vars", None)
 
-    arrays = [a for arg in args for a in ((getattr(arg, f) for f in fields(arg)) if fields(arg) else (arg,))]
-    return {a.ptr: a.capacity for a in arrays if isinstance(a, wp.array)}
+    flags = reads_writes(kernel) if kernel is not None else ()
+    seen: dict = {}  # address: [capacity, read, written]
+    for k, arg in enumerate(args):
+        read, written = flags[k] if k < len(flags) else (False, False)
+        for a in (getattr(arg, f) for f in fields(arg)) if fields(arg) else (arg,):
+            if isinstance(a, wp.array):
+                entry = seen.setdefault(a.ptr, [a.capacity, False, False])
+                entry[1], entry[2] = entry[1] or read, entry[2] or written
+    return {ptr: capacity * max(1, read + written) for ptr, (capacity, read, written) in seen.items()}
 
 
 class Tally:
     """Launches (by kernel key), bytes (each distinct array argument's capacity once
-    a launch), memsets/copies and host reads (``syncs``: ``.numpy()`` read-backs and
+    a launch for a read and once for a write: ``array_bytes``), memsets/copies and host reads (``syncs``: ``.numpy()`` read-backs and
     waits for an event) seen while ``counting()``."""
 
     def __init__(self):
@@ -49,7 +85,7 @@ class Tally:
 
     def kernel(self, kernel, args):
         if self.active:
-            seen = array_bytes(args)
+            seen = array_bytes(args, kernel)
             self.launches[kernel.key] += 1
             self.bytes[kernel.key] += sum(seen.values())
 

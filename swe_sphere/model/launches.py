@@ -18,7 +18,7 @@ import warp as wp
 from ..core.backend import Backend
 from ..core.graphs import GraphGuard
 from ..core.parallel import record
-from ..kernels import blas
+from ..kernels import blas, operators
 
 f64 = wp.float64
 
@@ -193,6 +193,32 @@ class LaunchRecorder:
                 else self.pointwise(kernel, 3, list(inputs))
             )
             launch = self._pointwise[key] = build
+        else:
+            for arg, value in zip(kernel.adj.args, inputs):
+                if not isinstance(value, wp.array):
+                    launch.set_param_by_name(arg.label, value)
+        launch.launch()
+
+    def lanes(self, a: wp.array) -> wp.array:
+        """``a`` ((rows, N) or (N,) of nodes) as lanes (``kernels.departure``'s): vectors of an
+        element's np² nodes on the per-element layout (a CPU thread's vector loop), of one node on
+        the per-node one (``kernels.operators.row_vectors``, zero-copy)."""
+        return operators.row_vectors(a, self.block if self.per_element else 1)
+
+    def run_lanes(self, kernel, *inputs) -> None:
+        """Run a kernel over lanes (``lanes``; a trailing ``offset`` in lanes, not in ``inputs``):
+        each array of the nodes among ``inputs`` taken as lanes, the launch's dim the first one's
+        ((rows, N/W) or N/W); recorded on the first call with these arrays, later calls only set
+        its scalar arguments."""
+        key = ("lanes", kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
+        launch = self._pointwise.get(key)
+        if launch is None:
+            args = [self.lanes(a) if isinstance(a, wp.array) and a.shape[-1] == self.nnodes else a for a in inputs]
+            dim = next(a for a in args if isinstance(a, wp.array)).shape
+            W = self.block if self.per_element else 1
+            launch = self._pointwise[key] = self.record(
+                kernel, dim if len(dim) > 1 else dim[0], args, nodes_per_index=W
+            )
         else:
             for arg, value in zip(kernel.adj.args, inputs):
                 if not isinstance(value, wp.array):

@@ -51,7 +51,9 @@ class MassFixer:
     def _launch(self, x, slot: int) -> None:
         key = (x.ptr, slot)
         if key not in self._recorded:
-            inputs = [x, self.topology.spheremp, self.block, slot, self.masses]
+            lanes, topo = self.launches.lanes, self.topology
+            per = self.block // (self.block if self.launches.per_element else 1)  # an element's lanes
+            inputs = [lanes(x[2]), lanes(topo.spheremp[: topo.N]), per, slot, self.masses]
             self._recorded[key] = self.launches.elements(departure.element_mass, inputs)
         self._recorded[key].launch()
 
@@ -66,4 +68,4 @@ class MassFixer:
             self.totals.assign(self.whole_totals(self.masses.numpy()))
         else:
             wp.launch(blas.row_totals, 1, [self.masses, self.totals], device=self.topology.device)
-        self.launches.run_pointwise(departure.restore_mass, x, self.totals, f64(self.area))
+        self.launches.run_lanes(departure.restore_mass, x[2], self.totals, f64(self.area))

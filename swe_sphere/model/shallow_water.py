@@ -567,7 +567,7 @@ class ShallowWater:
         """y (3, N, ``state_dtype``) = the state a step's stages carry of x (3, N float64): u, v
         and h − H₀ rounded once to float32 (``kernels.departure.to_departure``); x's mass taken
         for ``from_step_state`` to put back (``mass_fixer``)."""
-        self.pointwise(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
+        self.launches.run_lanes(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
         if self.mass_fixer is not None:
             self.mass_fixer.measure(x)
 
@@ -575,7 +575,7 @@ class ShallowWater:
         """x (3, N float64) from a step's float32 state y at the step's end: the step's increment
         y − ``to_step_state``(x) added in float64 (``compensated``), or y + H₀."""
         kernel = departure.add_increment if self.compensated else departure.from_departure
-        self.pointwise(kernel, y, f64(self.tendency_arrays.depth), x)
+        self.launches.run_lanes(kernel, y, f64(self.tendency_arrays.depth), x)
 
     def restore_mass(self, x: wp.array2d) -> None:
         """At a float32 state's step's end (after its ∇⁴, whose float32 Laplacians round too):

@@ -12,7 +12,7 @@ in a virtual environment of its own, made once with::
 (``--python`` names that environment's interpreter; where it cannot import dinosaur the script
 prints one line and exits 0). The measured versions: dinosaur 1.5.1, jax/jaxlib 0.10.2.
 
-**The peer's run.** Float64 (``jax_enable_x64``; ``--precision float32``: both models in float32, the peer's JAX without x64 and swe_sphere's float32 tendency), one layer, ``ShallowWaterEquations`` (no
+**The peer's run.** Float64 (``jax_enable_x64``; ``--precision float32``: both models in float32, the peer's JAX without x64 and swe_sphere's float32 tendency, except a ``--swe`` row that names its own ``numerics.precision=float32_state``), one layer, ``ShallowWaterEquations`` (no
 orography on Galewsky; on TC5 below), ``imex_rk_sil3`` (Whitaker & Kar 2013: the gravity-wave terms implicit) and the filter
 Dinosaur's own shallow-water tests and examples pair with it, ``exponential_step_filter(grid, dt)``
 at its defaults (τ = 0.010938 in Dinosaur's units of 1/(2Ω), i.e. 75 s; order 18, cutoff 0: each
@@ -433,7 +433,11 @@ def arguments():
     args = ap.parse_args()
     args.swe = list(STUDIES[args.case].swe) if args.swe is None else args.swe
     if args.precision != "float64":
-        args.swe = [f"{config},numerics.precision={args.precision}" for config in args.swe]
+        # a row that names its own precision keeps it (float32_state beside the mixed float32)
+        args.swe = [
+            config if "numerics.precision=" in config else f"{config},numerics.precision={args.precision}"
+            for config in args.swe
+        ]
     rows = []
     for config in args.swe:
         try:

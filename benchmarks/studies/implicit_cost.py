@@ -42,7 +42,7 @@ for the targets' idle machine with several threads (process time sums them).
 around every timed call (so the parts add up; the syncs cost a few µs each).
 
     SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --clock cpu
-    SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --clock cpu --precision double mixed
+    SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --clock cpu --precision float64 float32
     SWE_SPHERE_THREADS=1 python benchmarks/studies/implicit_cost.py --ne 16 --cases tc5_mountain --steppers epi2 epi3 CN \
         --krylov host kernels --explicit kgu35@900 rk4@350
     SWE_SPHERE_THREADS=2 python benchmarks/studies/implicit_cost.py --clock wall
@@ -164,9 +164,7 @@ def build(case, ne, stepper, dt, options, clock, device, backend=None):
     gw = getattr(sim.stepper, "helmholtz", None)
     if gw is not None:
         timers.wrap(gw, "solve", "Helmholtz rest")
-        for cg in (
-            (gw.cg, gw.low) if not gw.graphable else ()
-        ):  # the float64 CG's operator, and the float32 one's ("mixed")
+        for cg in (gw.cg, gw.low) if not gw.graphable else ():  # the float64 CG's operator, and the float32 one's
             if cg is not None:
                 timers.wrap(cg, "apply", "Helmholtz op")
     return sim, timers
@@ -184,8 +182,8 @@ def arguments() -> argparse.Namespace:
     ap.add_argument(
         "--precision",
         nargs="+",
-        default=["double"],
-        choices=("double", "mixed"),
+        default=["float64"],
+        choices=("float64", "float32"),
         help="the Helmholtz solves' precision; several: each configuration in each, interleaved",
     )
     ap.add_argument(

@@ -14,7 +14,7 @@ ledger, day 1 to the last), or the day it blew up.
 ``--parts cost``: on the same grid, CPU milliseconds (medians of ``--rounds`` interleaved
 rounds) of what a long step is made of: one RHS F(x) (the tendency and its DSS), one product
 of the Helmholtz operator M + cK (``model.helmholtz_cg``: its three element launches; also in
-float32, the kernels of the "mixed" solve: what cheaper arithmetic saves on this CPU), one
+float32, the kernels of the float32 solve: what cheaper arithmetic saves on this CPU), one
 forward-Euler ∇⁴ substep, and a whole step of each run (replayed outside graphs).
 
 ``--parts direct``: the sparse direct alternative to the CG (the issue's "a direct
@@ -158,7 +158,7 @@ def cost(args, runs, figures: dict) -> None:
     base = simulation(args, "kgu35", runs[0][1][1], {}, 1.0)
     m, x = base.model, base.x
     F = wp.zeros_like(x)
-    cg, cg32 = HelmholtzCG(m), HelmholtzCG(m, dtype=wp.float32)  # the "mixed" solve's float32 CG
+    cg, cg32 = HelmholtzCG(m), HelmholtzCG(m, dtype=wp.float32)  # the float32 solve's CG
     u = np.random.default_rng(0).random(m.topology.nunique)
     cg.u.assign(u)
     cg32.u.assign(u.astype(np.float32))

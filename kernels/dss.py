@@ -328,7 +328,84 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, d
         return wp.cw_mul(rsr[q], row)
 
     row_sum.__qualname__ = row_sum.__name__ = f"gather_row_{tag}"
-    return wp.func(row_sum)
+    func = wp.func(row_sum)
+    func.own = own  # a copy's own row, ``gather_rows``' too
+    return func
+
+
+@functools.cache
+def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, dtype=f64):
+    """``gather_row`` of every field at once: a ``wp.func`` (xr, x, d, g, wr, rsr, e, j) → the
+    (rows × np) matrix whose row r is ``gather_row``'s of field r, the same sums in the same
+    order (the same bits), each copy's index read once for all the fields rather than once a
+    field (a TC5 ne16 stage's DSS update, one thread: 114 → 84 µs for 3 rows, 152 → 112 for 4)."""
+    R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
+    NE = NP - 2
+    vec = wp.types.vector(length=NP, dtype=f64)
+    fields = wp.types.vector(length=R, dtype=f64)
+    block = wp.types.matrix(shape=(R, NP), dtype=f64)
+    xvec = operators.row_type(NP, dtype)
+    tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}" + suffix(dtype)
+
+    value = copy_value(R, W, G, dtype)
+    own = gather_row(R, W, C, G, NP, dtype).own
+
+    def corner_sums(x: wp.array2d(dtype=dtype), d: Copies, p: int):
+        s = fields()
+        for k in range(C):
+            c = d.table[p, k]
+            if c >= 0:
+                for r in range(R):
+                    s[r] += value(x, d, c, r)
+        return s
+
+    corner_sums.__qualname__ = corner_sums.__name__ = f"corner_sums_{tag}"
+    corners = wp.func(corner_sums)
+
+    def rows_sum(
+        xr: wp.array2d(dtype=xvec),
+        x: wp.array2d(dtype=dtype),
+        d: Copies,
+        g: Edges,
+        wr: wp.array(dtype=vec),
+        rsr: wp.array(dtype=vec),
+        e: int,
+        j: int,
+    ):
+        q = e * NP + j
+        M = block()
+        for r in range(R):
+            M[r] = vec() + own(xr, wr, r, q)
+        if j == 0 or j == NP - 1:
+            side = wp.where(j == 0, 0, 1)
+            a = g.aligned[e, side]
+            if a >= 0:
+                for r in range(R):
+                    M[r] = M[r] + own(xr, wr, r, a)
+            else:
+                for i in range(1, NP - 1):
+                    c = g.other[e, side * NE + i - 1]
+                    for r in range(R):
+                        M[r, i] += value(x, d, c, r)
+            p = q * NP
+            first = corners(x, d, p)
+            last = corners(x, d, p + NP - 1)
+            for r in range(R):
+                M[r, 0] = first[r]
+                M[r, NP - 1] = last[r]
+        else:
+            west = g.other[e, 2 * NE + j - 1]
+            east = g.other[e, 3 * NE + j - 1]
+            for r in range(R):
+                M[r, 0] += value(x, d, west, r)
+                M[r, NP - 1] += value(x, d, east, r)
+        rs = rsr[q]
+        for r in range(R):
+            M[r] = wp.cw_mul(rs, M[r])
+        return M
+
+    rows_sum.__qualname__ = rows_sum.__name__ = f"gather_rows_{tag}"
+    return wp.func(rows_sum)
 
 
 @functools.cache
@@ -347,7 +424,7 @@ def dss_update_elements(
     vec = wp.types.vector(length=NP, dtype=f64)
     xvec = operators.row_type(NP, dtype)
     svec = operators.row_type(NP, state)
-    row_dss = gather_row(rows, weighted, copies, ghosts, np_, dtype)
+    rows_dss = gather_rows(rows, weighted, copies, ghosts, np_, dtype)
     first = combination(patterns[0])
     second = combination(patterns[-1])
     TWO = len(patterns) == 2
@@ -371,8 +448,9 @@ def dss_update_elements(
         e = wp.tid() + offset
         for j in range(NP):
             q = e * NP + j
+            M = rows_dss(xr, x, d, g, wr, rsr, e, j)
             for r in range(R):
-                k = row_dss(xr, x, d, g, wr, rsr, e, j, r)
+                k = M[r]
                 out0[r, q] = svec(first(wp.vec3d(c[0], c[1], c[2]), k, s00, s01, r, q))
                 if wp.static(TWO):
                     out1[r, q] = svec(second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q))

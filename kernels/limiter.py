@@ -23,51 +23,64 @@ f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
 
 
-@wp.kernel
-def element_bounds(
-    x: wp.array2d(dtype=f64), npp: int, lo: wp.array2d(dtype=f64), hi: wp.array2d(dtype=f64), offset: int
-):
-    """lo[k], hi[k] (K, N) at each node of an element = the least and greatest over the element
-    of tracer k's q = x[3 + k] / x[2]; ``npp`` = np² nodes an element."""
-    base = (wp.tid() + offset) * npp
-    for k in range(lo.shape[0]):
-        least = x[3 + k, base] / x[2, base]
-        most = least
-        for i in range(1, npp):
-            q = x[3 + k, base + i] / x[2, base + i]
-            least = wp.min(least, q)
-            most = wp.max(most, q)
-        for i in range(npp):
-            lo[k, base + i] = least
-            hi[k, base + i] = most
+@functools.cache
+def element_bounds(np_: int):
+    """The kernel (x, b, offset): b[2k], b[2k + 1] (2K, ·) at each node of an element = the least
+    and the greatest over the element of tracer k's q = x[3 + k] / x[2]. On GLL rows
+    (``operators.row_vectors``: x and b as rows). Dim nelem."""
+    NP = int(np_)
+    vec = row_derivatives(NP)[0]
+
+    def kernel(x: wp.array2d(dtype=vec), b: wp.array2d(dtype=vec), offset: int):
+        base = (wp.tid() + offset) * NP
+        for k in range(b.shape[0] // 2):
+            least = x[3 + k, base][0] / x[2, base][0]
+            most = least
+            for j in range(NP):
+                q = wp.cw_div(x[3 + k, base + j], x[2, base + j])
+                for i in range(NP):
+                    least = wp.min(least, q[i])
+                    most = wp.max(most, q[i])
+            for j in range(NP):
+                b[2 * k, base + j] = vec(least)
+                b[2 * k + 1, base + j] = vec(most)
+
+    kernel.__qualname__ = kernel.__name__ = f"element_bounds_np{NP}"
+    return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @functools.cache
-def neighbour_bounds(rows: int, copies: int, ghosts: bool, upper: bool):
-    """The kernel (b, d, npp, out, offset): out[2k (+1 if ``upper``), e] = the least (greatest) of
-    b[k] (``rows`` = K, N: ``element_bounds``' lo or hi) over every copy of element e's nodes, its
-    own and those of the elements sharing a node with it, another rank's read from d's ghosts
-    (``dss.Copies``, ``copies`` its table's columns; b exchanged first where ``ghosts``): a min
-    or max, so the same bits on any ranks. Dim nelem."""
-    R, C, G, U = int(rows), int(copies), bool(ghosts), bool(upper)
-    value = copy_value(R, False, G)
+def neighbour_bounds(tracers: int, copies: int, ghosts: bool):
+    """The kernel (b, d, npp, out, offset): out[2k, e], out[2k + 1, e] = the least of b[2k] and
+    the greatest of b[2k + 1] (2K, N: ``element_bounds``') over every copy of element e's nodes,
+    its own and those of the elements sharing a node with it, another rank's read from d's
+    ghosts (``dss.Copies``, ``copies`` its table's columns; b exchanged first where ``ghosts``),
+    each copy's index read once for every tracer: a min and a max, so the same bits on any
+    ranks. Dim nelem."""
+    K, C, G = int(tracers), int(copies), bool(ghosts)
+    value = copy_value(2 * K, False, G)
+    bounds = wp.types.vector(length=K, dtype=f64)
 
     def kernel(b: wp.array2d(dtype=f64), d: Copies, npp: int, out: wp.array2d(dtype=f64), offset: int):
         e = wp.tid() + offset
         base = e * npp
-        for k in range(R):
-            v = b[k, base]
-            for i in range(npp):
-                for j in range(C):
-                    c = d.table[base + i, j]
-                    if c >= 0:
-                        if wp.static(U):
-                            v = wp.max(v, value(b, d, c, k))
-                        else:
-                            v = wp.min(v, value(b, d, c, k))
-            out[2 * k + wp.static(int(U)), e] = v
+        lo = bounds()
+        hi = bounds()
+        for k in range(K):
+            lo[k] = b[2 * k, base]
+            hi[k] = b[2 * k + 1, base]
+        for i in range(npp):
+            for j in range(C):
+                c = d.table[base + i, j]
+                if c >= 0:
+                    for k in range(K):
+                        lo[k] = wp.min(lo[k], value(b, d, c, 2 * k))
+                        hi[k] = wp.max(hi[k], value(b, d, c, 2 * k + 1))
+        for k in range(K):
+            out[2 * k, e] = lo[k]
+            out[2 * k + 1, e] = hi[k]
 
-    kernel.__qualname__ = kernel.__name__ = f"neighbour_bounds__{'max' if U else 'min'}{'__ghosts' if G else ''}"
+    kernel.__qualname__ = kernel.__name__ = "neighbour_bounds" + ("__ghosts" if G else "")
     return wp.kernel(kernel, enable_backward=False, module="unique")
 
 

@@ -40,7 +40,7 @@ class TracerLimiter:
         self.model = m = model
         self.npp = npp = m.grid.np**2
         nelem, K, N, device = m.N // npp, m.tracers, m.N, m.device
-        self.lo, self.hi = (wp.zeros((K, N), dtype=f64, device=device) for _ in range(2))  # each element's own
+        self.own = wp.zeros((2 * K, N), dtype=f64, device=device)  # each element's own: 2k least, 2k + 1 most
         self.near = wp.zeros((2 * K, nelem), dtype=f64, device=device)  # over the neighbours too: 2k least, 2k + 1 most
         self.work = wp.zeros((K, N), dtype=f64, device=device)
 
@@ -52,11 +52,13 @@ class TracerLimiter:
         columns, ghosts = topo.table.shape[1], bool(len(topo.neighbours))
 
         def build():
-            launches = [m.launches.elements(limiter.element_bounds, [x, self.npp, self.lo, self.hi])]
-            for upper, b in ((False, self.lo), (True, self.hi)):
-                kernel = limiter.neighbour_bounds(m.tracers, columns, ghosts, upper)
-                launches += [*topo.exchange(b), m.launches.elements(kernel, [b, topo.dss_copies, self.npp, self.near])]
-            return launches
+            rows = m.operators.as_rows
+            kernel = limiter.neighbour_bounds(m.tracers, columns, ghosts)
+            return [
+                m.launches.elements(limiter.element_bounds(m.grid.np), [rows(x), rows(self.own)]),
+                *topo.exchange(self.own),
+                m.launches.elements(kernel, [self.own, topo.dss_copies, self.npp, self.near]),
+            ]
 
         m.launches.replay(("limiter_bounds", x.ptr), (x,), build)
 

@@ -92,7 +92,7 @@ def members_from_checkpoint(path, **kw) -> Simulation:
 
 def take_steps(sim: Simulation, n: int):
     """``n`` more steps of ``sim`` at its fixed Δt (``advance`` by their days, the scene lengthened
-    past its end), what the deprecated ``Ensemble.step(n)`` took; ``advance``'s ``RunResult``."""
+    past its end); ``advance``'s ``RunResult``."""
     return sim.advance(n * sim.scene.dt / DAY)
 
 

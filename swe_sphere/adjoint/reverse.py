@@ -61,7 +61,7 @@ from .tape import (
 f64 = wp.float64
 
 # the tapes whose reverses an adjoint keeps recorded (``reverse.TapeAdjoint``): a controlled run
-# takes its Δt from a grid of 16 an octave (``simulation.adaptive.DT_GRID``), so few recur at once
+# takes its Δt from a grid of 16 an octave (``integrator.control.DT_GRID``), so few recur at once
 HELD_DTS = 8
 
 

@@ -215,7 +215,7 @@ def _progress_lines(args):
     no bar is drawn (stderr not a terminal) and --no-progress is not given, else None; a caller's
     ``main(argv)`` (its stdout its own) gets them only with --progress-every. ``SceneError`` for
     an interval that is not a number of seconds >= 0."""
-    from ..simulation.progress import PROGRESS_SECONDS, ProgressLines
+    from .progress import PROGRESS_SECONDS, ProgressLines
 
     every = args.progress_every
     if every is not None and not (math.isfinite(every) and every >= 0):

@@ -10,9 +10,11 @@ semi-implicit, implicit and exponential steppers add their own buffers (below).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import sys
+import time
 
 from .errors import ResourceError
 
@@ -98,6 +100,35 @@ def _note_first_compilation(wp) -> None:
 
 
 _compilation_hooked = False  # whether this process has hooked Warp's code generation (at most once)
+
+
+@contextlib.contextmanager
+def compile_timer(acc: list):
+    """Add the seconds spent loading (compiling on a cold cache) Warp modules to acc[0], by hooking
+    Warp's private module load as ``_note_first_compilation`` hooks its code generation (a
+    ``Simulation``'s ``compile_time``)."""
+    try:
+        from warp._src.context import Module  # private: without it, compilation counts as stepping
+    except ImportError:
+        yield
+        return
+    real, depth = Module.load, [0]
+
+    def load(self, *args, **kwargs):
+        depth[0] += 1
+        t0 = time.perf_counter()
+        try:
+            return real(self, *args, **kwargs)
+        finally:
+            depth[0] -= 1
+            if depth[0] == 0:
+                acc[0] += time.perf_counter() - t0
+
+    Module.load = load
+    try:
+        yield
+    finally:
+        Module.load = real
 
 
 def available_memory() -> int:

@@ -20,6 +20,7 @@ import netCDF4
 import numpy as np
 
 from ..core.cache import cache_dir
+from ..core.errors import ArgumentError
 from ..core.runtime import package_version
 from ..grid.cubed_sphere import CubedSphere
 from ..mesh.mesh import Mesh, check
@@ -143,7 +144,7 @@ SERIES_ATTRS = {
         units="1", long_name="cumulative fast (gravity-wave) evaluations of the multirate steppers' substeps"
     ),
     "steps": dict(units="1", long_name="time steps taken"),
-    # under step control (``simulation.adaptive``), at each output time
+    # under step control (``integrator.control``), at each output time
     "dt": dict(units="s", long_name="length of the last accepted time step (the controller's; cut to land here)"),
     "rejected_steps": dict(units="1", long_name="cumulative time steps rejected by the error controller"),
     "error_estimate": dict(
@@ -505,3 +506,29 @@ def close_open_runs(failed: str) -> None:
         writer.set_attrs(failed=failed)
         writer.close()
     release_held_locks()  # a lock taken ahead (``HeldLock``) for a run that never wrote
+
+
+def member_states(path, day: float | None, members: int, nunique: int, where: str) -> np.ndarray:
+    """(members, 3, nunique) float64: u, v (m s⁻¹) and h (m) of every member of the ensemble's run
+    file ``path`` (``RunWriter`` with ``members``) at model day ``day`` (None: the file's last time)
+    on the unique nodes, as written. ``ArgumentError`` beginning ``where`` for a file that cannot
+    be read, is not an ensemble's run file (no h on time, member, ncol), holds another member
+    count or another grid's ``nunique`` nodes, or not ``day``."""
+    try:
+        ds = netCDF4.Dataset(path)
+    except (OSError, TypeError) as err:
+        raise ArgumentError(f"{where}: not a readable netCDF file ({err})") from None
+    with ds:
+        if "h" not in ds.variables or ds["h"].dimensions != ("time", "member", "ncol"):
+            raise ArgumentError(f"{where}: not an ensemble's run file (no h on time, member, ncol)")
+        held, ncol = ds.dimensions["member"].size, ds.dimensions["ncol"].size
+        if held != members:
+            raise ArgumentError(f"{where}: the file holds {held} members, the ensemble {members}")
+        if ncol != nunique:
+            raise ArgumentError(f"{where}: the file's grid has {ncol} unique nodes, the scene's {nunique}")
+        days = np.asarray(ds["time"][:], dtype=np.float64)
+        last = np.arange(days.size)[-1:]  # none in a file without output times
+        at = last if day is None else np.flatnonzero(np.isclose(days, day, rtol=0, atol=1e-9))
+        if at.size == 0:
+            raise ArgumentError(f"{where}: no output at day {day} (it holds {', '.join(f'{d:g}' for d in days)})")
+        return np.stack([np.asarray(ds[name][at[0]], dtype=np.float64) for name in "uvh"], axis=1)

@@ -11,6 +11,7 @@ import numpy as np
 from ..core.arguments import array_argument, got, integer_argument, number_argument
 from ..core.errors import ArgumentError, SceneError
 from ..grid.cubed_sphere import CubedSphere
+from ..io.run_file import member_states
 
 ON_ROOT = object()  # ``start`` on the ranks > 0 when rank 0 alone holds the whole-grid start state (``read_on_root``)
 
@@ -99,30 +100,8 @@ class MemberFile:
     def apply(self, grid: CubedSphere, members: int) -> np.ndarray:
         """(members, 3, n) on ``grid``'s element-local nodes. ``ArgumentError`` naming
         ``initial`` for a file that cannot be read, is not an ensemble's run file, holds
-        another member count or grid, or not ``day``."""
-        import netCDF4
-
-        where = f"initial: {self.path}"
-        try:
-            ds = netCDF4.Dataset(self.path)
-        except (OSError, TypeError) as err:
-            raise ArgumentError(f"{where}: not a readable netCDF file ({err})") from None
-        with ds:
-            if "h" not in ds.variables or ds["h"].dimensions != ("time", "member", "ncol"):
-                raise ArgumentError(f"{where}: not an ensemble's run file (no h on time, member, ncol)")
-            held, ncol = ds.dimensions["member"].size, ds.dimensions["ncol"].size
-            if held != members:
-                raise ArgumentError(f"{where}: the file holds {held} members, the ensemble {members}")
-            if ncol != grid.nunique:
-                raise ArgumentError(f"{where}: the file's grid has {ncol} unique nodes, the scene's {grid.nunique}")
-            days = np.asarray(ds["time"][:], dtype=np.float64)
-            last = np.arange(days.size)[-1:]  # none in a file without output times
-            at = last if self.day is None else np.flatnonzero(np.isclose(days, self.day, rtol=0, atol=1e-9))
-            if at.size == 0:
-                raise ArgumentError(
-                    f"{where}: no output at day {self.day} (it holds {', '.join(f'{d:g}' for d in days)})"
-                )
-            return np.stack([np.asarray(ds[name][at[0]], dtype=np.float64)[:, grid.gid] for name in "uvh"], axis=1)
+        another member count or grid, or not ``day`` (``io.run_file.member_states``)."""
+        return member_states(self.path, self.day, members, grid.nunique, f"initial: {self.path}")[..., grid.gid]
 
 
 # what a member's own model holds (``Variants.own_model``): its gravity and ∇⁴ coefficients

@@ -96,7 +96,7 @@ class LaunchRecorder:
         The most coefficient sets kept recorded under one key of ``replay`` with
         ``coefficients`` (None: all). Past it the least recently replayed list takes the
         new coefficients in place (its launch arguments set, nothing recorded): a run whose
-        Δt changes step to step (``simulation.adaptive``) sets it, so that a new Δt costs
+        Δt changes step to step (``integrator.control``) sets it, so that a new Δt costs
         the arguments' setting, not a recording.
     """
 

@@ -18,7 +18,7 @@ class RunObserver(Observer):
     what a user's callback is handed, read by nothing here), ``ledger``
     its ``summary.Ledger`` (the steps' counts and times: its ``add`` and ``account`` the hooks),
     ``signals`` a ``StopSignals``; after good steps the activities due
-    and the progress on ``bar`` (tqdm) and ``lines`` (``progress.ProgressLines``). A block of
+    and the progress on ``bar`` (tqdm) and ``lines`` (``cli.progress.ProgressLines``). A block of
     steps, its states flagged on the device and read once at its end (the integrator's guard:
     its module doc), ends every ``every`` steps (``Simulation.check_every``) and at each step an
     activity is due (``block_end``). Under step control ``steered`` (``steer``'s

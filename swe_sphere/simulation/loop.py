@@ -1,16 +1,14 @@
 """The run loop of ``Simulation.run``, of one member or many: the run wrapper (``integrate``:
 its files recorded, signals, progress bar, a stopped run's files closed) and its outcome
 (``outcome``), its steps by the integrator (``run_steps``, at a fixed or a controlled Δt) under
-the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``), the run's
-arguments checked (``check_run_arguments``) and the seconds spent compiling Warp modules
-(``compile_timer``): plain functions of the parts they are given."""
+the run's hooks (``guard.RunObserver``), the run's own activities (``own_activities``) and the run's
+arguments checked (``check_run_arguments``): plain functions of the parts they are given."""
 
 from __future__ import annotations
 
 import contextlib
 import signal
 import sys
-import time
 
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
@@ -18,36 +16,10 @@ from tqdm import tqdm
 from ..core.arguments import flag_argument, number_argument, path_argument
 from ..core.errors import BlowUp, Interrupted, OutputError, SceneError
 from ..core.interrupts import ABANDON_AFTER
+from ..core.runtime import compile_timer
 from ..integrator.core import Stop
 from ..io.output_files import check_distinct, check_target
 from .writers import Checkpointer, RunFiles, opening
-
-
-@contextlib.contextmanager
-def compile_timer(acc: list):
-    """Add the seconds spent loading (compiling on a cold cache) Warp modules to acc[0]."""
-    try:
-        from warp._src.context import Module  # private: without it, compilation counts as stepping
-    except ImportError:
-        yield
-        return
-    real, depth = Module.load, [0]
-
-    def load(self, *args, **kwargs):
-        depth[0] += 1
-        t0 = time.perf_counter()
-        try:
-            return real(self, *args, **kwargs)
-        finally:
-            depth[0] -= 1
-            if depth[0] == 0:
-                acc[0] += time.perf_counter() - t0
-
-    Module.load = load
-    try:
-        yield
-    finally:
-        Module.load = real
 
 
 def check_run_arguments(output, overwrite, restart_every, restart_file, compress, catch_signals) -> None:
@@ -100,7 +72,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     ``run_state.RunState``) stepped by ``blocks(bar)`` (``run_steps``; a ``Stop``) with
     its files (``writers.RunFiles``, ``Checkpointer``) under ``signals`` (a ``StopSignals``), one
     BLAS thread, ``during`` (a context: the run's own activities), a progress bar and ``lines``
-    (a ``progress.ProgressLines`` or None), the seconds compiling added to ``compiling[0]``. The
+    (``cli.progress.ProgressLines``: ``start``, ``tick``; or None), the seconds compiling added to ``compiling[0]``. The
     first output time recorded first (``start`` its gathered fields, ``diagnosed`` their diagnostics
     where taken), a continuation's not written again: the two files join without a repeat. ``ends``
     the run's diagnostics (``members.members.Members``): where

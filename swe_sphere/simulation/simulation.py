@@ -30,6 +30,7 @@ from ..core.constants import DAY
 from ..core.errors import ArgumentError, BlowUp, Interrupted, SceneError
 from ..core.graphs import default_mode, graphs_mode
 from ..core.interrupts import StopSignals
+from ..core.runtime import compile_timer
 from ..integrator.core import Stop, forwarded
 from ..io.run_file import OUTPUT_FIELDS, node_dataset
 from ..members.initial import asked
@@ -40,7 +41,7 @@ from .activities import add_callback, log_activity
 from .checkpoint import restore_run, write_restart
 from .guard import RunObserver
 from .intervals import Intervals
-from .loop import check_run_arguments, compile_timer, integrate, open_files, outcome, own_activities, run_steps
+from .loop import check_run_arguments, integrate, open_files, outcome, own_activities, run_steps
 from .names import delegated, of_one, squeeze, squeezed
 from .run_state import RunState
 from .schedules import EverySteps, at_its_end
@@ -352,8 +353,9 @@ class Simulation:
         until_day : float, optional
             Under step control, the model day to land on and stop at (default: the scene's last;
             ``advance``).
-        progress_lines : progress.ProgressLines, optional
-            Rank 0's lines of progress every so many wall seconds, where no bar is drawn.
+        progress_lines : cli.progress.ProgressLines, optional
+            Rank 0's lines of progress every so many wall seconds, where no bar is drawn (any object
+            with ``start(day, end_day)`` and ``tick(step, day)``; the console script's).
 
         Returns
         -------

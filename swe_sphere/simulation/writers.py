@@ -49,9 +49,9 @@ def opening(d, files, start, history: str | None, name: str, dfi, device: str) -
     MPI ranks), from which start (the digital filter ``dfi`` or None; members: ``initial_states``), its
     command line (``history``), a single run's Courant numbers at the start and a branch's origin."""
     s, run = d.run.scene, d.run
-    kind, caller = ("ensemble", name) if d.members else ("run", "swe_sphere.Simulation.run")
+    kind = "ensemble" if d.members else "run"
     # what ran, then e.g. which Butcher table ran and where
-    attrs = {**scene_attrs(s, kind, history, caller), **run.stepper.attrs(), "device": device}
+    attrs = {**scene_attrs(s, kind, history, name), **run.stepper.attrs(), "device": device}
     again = {"continued_from_day": run.time} if run.step else {}
     if d.members:
         first = d.diagnose(run.seconds(run.step), whole=start)

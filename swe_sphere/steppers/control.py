@@ -116,7 +116,7 @@ class ErrorNorm:
     (h a depth: a scene with a pressure gradient) a step that ends with h ≤ 0 anywhere has
     the norm +inf, and one with a non-finite value NaN or inf: a finite norm is a state the
     bad-node check (``model.bad_nodes``) passes. ``atol`` (3,) the device array of the
-    absolute tolerances (u, v, h), which a caller may set between norms (``adaptive.Balance``).
+    absolute tolerances (u, v, h), which a caller may set between norms (``integrator.control.Balance``).
     ValueError for a negative tolerance, or rtol 0 with an atol 0."""
 
     def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2, check_depth: bool = False):
@@ -252,7 +252,7 @@ class SpatialRate:
     RMS weighted by spheremp, the sums ``Topology.whole_sums``' (the same bits on any rank
     count). A row
     of x that is zero everywhere takes the largest rate times 0. About 1 ms at ne30 (one thread),
-    every ``adaptive.BALANCE_EVERY`` steps."""
+    every ``integrator.control.BALANCE_EVERY`` steps."""
 
     def __init__(self, topology):
         grid = topology.grid

@@ -141,7 +141,7 @@ def slow_clock(monkeypatch):
     """The progress lines' clock, 100 s of wall time a reading: a line at every block of steps."""
     import itertools
 
-    import swe_sphere.simulation.progress as progress
+    import swe_sphere.cli.progress as progress
 
     ticks = itertools.count(0.0, 100.0)
     monkeypatch.setattr(progress, "clock", lambda: next(ticks))
@@ -186,7 +186,7 @@ def test_an_ensemble_off_a_terminal_prints_its_progress(capsys, slow_clock):
 
 
 def test_a_progress_line_estimates_the_time_left(monkeypatch):
-    import swe_sphere.simulation.progress as progress
+    import swe_sphere.cli.progress as progress
 
     now, lines = [100.0], []
     monkeypatch.setattr(progress, "clock", lambda: now[0])

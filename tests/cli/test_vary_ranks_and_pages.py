@@ -51,7 +51,7 @@ def test_the_time_left_is_not_paced_by_the_first_step_s_compiling(monkeypatch):
     compiling counted as the pace of every step. A run from day 0 to 1 whose first step (day 0.01)
     took 4 s, every other 0.1 s: at 5 s the 89 steps left take 8.9 s (the whole 5 s over 0.11 days
     said 40 s)."""
-    import swe_sphere.simulation.progress as progress
+    import swe_sphere.cli.progress as progress
 
     now, lines = [0.0], []
     monkeypatch.setattr(progress, "clock", lambda: now[0])

@@ -1,4 +1,4 @@
-"""CUDA against the CPU under error control (``simulation.adaptive.StepControl``): every
+"""CUDA against the CPU under error control (``integrator.control.StepControl``): every
 embedded pair and the JFNK stepper on TC5 ne2 np4 over a quarter day at rtol 1e-6, and an
 IMEX pair's and the JFNK stepper's rejected tries put back from device copies
 (``TrialSteps.checkpoint``/``rollback``), as on the CPU (``tests/steppers/test_variable_dt.py``).

@@ -1,4 +1,4 @@
-"""Steps that choose themselves (``simulation.adaptive.StepControl``) on TC2 (exact solution),
+"""Steps that choose themselves (``integrator.control.StepControl``) on TC2 (exact solution),
 ne 4, under ``control = "error"`` with bs32: the error against the exact solution falls with
 rtol, the run ends exactly at its day, and a run stopped at a day and continued from the
 stepper's and the control's state gives the same bits as one that did not stop. The default
@@ -17,8 +17,8 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
 from swe_sphere.core.tally import Tally, instrumented
+from swe_sphere.integrator.control import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
 from swe_sphere.model.diagnostics import courant_numbers
-from swe_sphere.simulation.adaptive import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
 
 from helpers import assert_same_runs, make_sim, watched_run
 

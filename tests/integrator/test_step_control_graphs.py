@@ -1,4 +1,4 @@
-"""A controlled run's tries replayed as graphs (``integrator.Unit.try_step``, ``adaptive.StepControl``).
+"""A controlled run's tries replayed as graphs (``integrator.Unit.try_step``, ``integrator.control.StepControl``).
 
 The controller's Δt are those of its grid (``on_grid``), so a few recur and each keeps a graph
 keyed by it (``GraphCapture.graph_key``; an FSAL pair's key also says whether its first stage was

@@ -33,7 +33,7 @@ def test_one_member_under_error_control_is_the_single_run(tmp_path, one_thread):
 
 def test_members_take_one_controlled_dt_and_advance_lands_on_the_day(one_thread):
     """Two perturbed members: each accepted Δt is every member's (one history), ``advance``
-    lands on the day asked (the old ``Ensemble.step``'s refusal: tests/ensemble); the error norm's
+    lands on the day asked; the error norm's
     tolerance tighter, more steps."""
     ens = members_run("galewsky", 2, Perturbation(1.0, seed=1), device="cpu", **CONTROLLED)
     ens.advance(0.1)

@@ -531,7 +531,7 @@ def test_under_error_control_newton_converges_below_the_step_s_tolerance():
     """Newton's own error must stay below the step's: under error control (atol 1e-7 m s⁻¹ and
     m) it stops at a residual RMS ≤ 0.1 atol / Δt (here below its default 1e-8 s⁻¹: a state
     error of Δt × 1e-8 m a step, 4e-3 m over TC2 ne16's 1800 steps of 240 s)."""
-    from swe_sphere.simulation.adaptive import StepControl
+    from swe_sphere.integrator.control import StepControl
 
     overrides = {"time.control": "error", "time.rtol": 1e-7}
     sim = make_sim(load_scene("tc2_steady", ne=4, days=0.5, stepper="implicit", overrides=overrides))

@@ -1,6 +1,7 @@
 """A run's progress as a line every so many seconds of wall time, for a log where no bar is
 drawn (a pipe, ``nohup``, CI: stderr not a terminal), as HOMME, Oceananigans and SpeedyWeather
-print theirs: ``ProgressLines``, handed to ``Simulation.run``."""
+print theirs: ``ProgressLines``, the console script's (``run --progress-every``), handed to
+``Simulation.run``, which calls its ``start`` and ``tick`` alone."""
 
 from __future__ import annotations
 

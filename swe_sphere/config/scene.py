@@ -109,6 +109,7 @@ from .resolve import (
     ResolvedCase,
     Spacing,
     check_superseded,
+    refuse_precision,
     resolve_case,
     resolve_dt_np,
     resolve_ensemble,
@@ -128,7 +129,7 @@ from .resolve import (
     resolve_tracers,
     scene_title,
 )
-from .resolved import Scene, scene_from_dict, with_days
+from .resolved import Scene, run_end, scene_from_dict, with_days
 from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
 from .state_scene import TEMPLATE, is_state_file, start_overrides
 from .step_rule import DT_NOTES, Times, scene_dt
@@ -516,3 +517,31 @@ def flat_overrides(overrides: dict) -> dict:
         else:
             flat[key] = value
     return flat
+
+
+def branched(s: Scene, record: dict, stepper: str | None = None, dt: float | None = None, days=None) -> Scene:
+    """The scene of a new run from a state of scene ``s`` at its day ``record["day"]`` (a
+    restart file's: ``simulation.checkpoint.branch``) with ``stepper`` and ``dt`` (s, taken by
+    the scene's step rule, ``step_rule.scene_dt``; None: ``s``'s), to model day ``days`` (from
+    t = 0; None: ``s``'s): a fresh stepper (multistep ones start as at t = 0), step 0 at that
+    day (``Scene.start_day``), output every output interval from there, and ``Scene.branch``
+    the ``record`` of its source with ``s``'s stepper and dt. The stepper's options are ``s``'s
+    for its own stepper, else the defaults; its precision ``s``'s. Raises ``SceneError`` (one
+    line) for an unknown stepper, one that cannot step the precision (``refuse_precision``), a
+    dt <= 0, or a run from the branch day to ``days`` or an output interval that is not whole
+    steps of dt."""
+    stepper = resolve_stepper_days({"stepper": s.stepper}, stepper)[0]  # s's, or another known one
+    refuse_precision(s.precision, stepper)
+    record = {**record, "stepper": s.stepper, "dt": s.dt}
+    # the notes on how the scene's dt was chosen are stale once dt is given
+    notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
+    opts = s.stepper_options if stepper == s.stepper else {}
+    scene = dataclasses.replace(s, stepper=stepper, stepper_options=opts, branch=record, notes=notes)
+    days = s.days if days is None else days
+    if dt is None:  # the restart file's Δt, its scene's rule's
+        return with_days(scene, days)
+    # a Δt given: the scene's rule takes it as given (> 0, whole steps of the run from the branch day and
+    # of its output interval; the grid's spacing unasked: a given Δt is not scaled)
+    times = Times(run_end(days, scene.start_day), s.output_every_days, start=scene.start_day)
+    dt = scene_dt(None, dt, s.name, s.grid, None, times, controlled=s.control is not None)[0]
+    return dataclasses.replace(scene, dt=float(dt), days=times.days)

@@ -47,7 +47,7 @@ class SceneControl:
     (``config.control.CFL_FRACTION`` × the stepper's measured Courant limit), which holds the
     Courant number only: no bound on a step's growth, so that where it does not bind the steps
     are the error controller's alone. Under "balanced" (error control whose tolerances follow
-    the spatial error's estimated rate, ``integrator.control.Balance``) ``balance`` (> 0) the
+    the spatial error's estimated rate, ``steppers.control.Balance``) ``balance`` (> 0) the
     fraction of it a step's error estimate is held to, per unit of time; rtol and atol None.
     ``per_unit_step`` (under "error"): the error norm taken per unit step, ‖e‖ · (1 day / Δt),
     rather than per step (Shampine 2005, J. Sci. Comput. 25:3, "error per unit step": tolerance

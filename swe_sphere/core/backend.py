@@ -285,10 +285,26 @@ class Backend:
         """A ``HostRead`` of the device array ``a`` (this backend's)."""
         return HostRead(a, self.host)
 
-    def check_memory(self, need: int, what: str) -> None:
-        """Raise ``ResourceError`` (one line) when ``need`` bytes exceed the memory the
-        run's arrays live in: a GPU's free memory on CUDA, else the host's available
-        memory (``runtime.check_memory``)."""
+    def check_memory(self, need: int, what: str, comm=None) -> None:
+        """Raise ``ResourceError`` (one line) when ``need`` bytes (``what`` needs them) exceed the
+        memory the run's arrays live in: a GPU's free memory on CUDA, else the host's available
+        memory (``runtime.check_memory``); over the ranks of ``comm`` (each holding 1/size of
+        ``need``), the share of the ranks on each node, or on CUDA on each GPU (``sharing``),
+        raised on every rank where one must (collective; ``on_every_rank`` set: the console
+        script says it once, from rank 0, without MPI_Abort)."""
+        if comm is not None and comm.size > 1:
+            local, where = self.sharing(comm)  # the ranks whose arrays share this rank's memory
+            try:
+                self.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} {where})")
+                error = None
+            except ResourceError as err:
+                error = str(err)
+            errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
+            if errors:
+                err = ResourceError(errors[0])
+                err.on_every_rank = True
+                raise err
+            return
         if self.host:
             check_memory(need, what)
             return

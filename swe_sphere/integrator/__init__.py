@@ -6,7 +6,3 @@ gradient's sweeps (``adjoint.gradient``).
 
 May import: every layer below (``config`` down to ``kernels``). Its modules are imported by
 name (``integrator.core``, ``integrator.control``)."""
-
-from .core import Unit  # what a test of the units' graphs builds a unit with
-
-__all__ = ["Unit"]

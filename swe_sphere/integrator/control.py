@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
-import numpy as np
 import warp as wp
 
 from ..config.control import ESTIMATED
@@ -46,7 +45,7 @@ from ..core.constants import DAY
 from ..core.errors import BlowUp, SceneError
 from ..steppers import StepStats
 from ..steppers.capabilities import ErrorEstimates, TrialSteps
-from ..steppers.control import CflController, Controller, CourantMax, ErrorNorm, SpatialRate, capped
+from ..steppers.control import ATOL_FLOOR, Balance, CflController, Controller, CourantMax, ErrorNorm, capped
 
 # a target this close past a step's end (relative to Δt) is landed on by that step rather than
 # left to a sliver of a step after it
@@ -71,49 +70,6 @@ CAP_EVERY = 16
 # where a try is launched ahead, its Courant pass is queued before it when the last step's growth,
 # applied again, would bring the proposal within this fraction of CAP_MARGIN of the cap
 CAP_LIKELY = 0.9
-
-# under "balanced", the spatial error's rate is estimated again after this many accepted steps
-# (one RHS evaluation and a pass over the state: 1/16 of an RHS a step), and no absolute
-# tolerance falls below ATOL_FLOOR (each row's units, m s⁻¹ and m: the round-off of a state)
-BALANCE_EVERY = 16
-ATOL_FLOOR = 1e-12
-
-
-class Balance:
-    """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
-    with rtol 0) on ``unit``'s model and grid (an ``integrator.core.Unit``), held to ``fraction`` (``SceneControl.balance``).
-    ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
-    scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
-    then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
-    ``fraction`` of the spatial error the grid makes over Δt, on every row alike (σ is the
-    largest row's relative rate times each row's RMS). Why rates and not the errors
-    themselves: both errors grow with time and are carried by the same flow (Galewsky ne30's
-    spatial error grows 150-fold from day 1 to day 6 while the state's highest-mode tail does not
-    triple), so balancing what each step adds balances their sums as far as the flow carries
-    them alike; a step's estimate being a local error, the mode is per unit step (Δt in the
-    tolerance). ``state``/``restore``: σ and the steps since its estimate (a restart continues
-    bitwise)."""
-
-    def __init__(self, fraction: float, unit, norm: ErrorNorm):
-        self.fraction, self.model, self.norm = float(fraction), unit.model, norm
-        self.rate = SpatialRate(unit.model.topology)
-        self.F = wp.zeros_like(unit.x)
-        self.sigma, self.since = None, 0
-
-    def tolerances(self, x0, t: float, dt: float) -> None:
-        if self.sigma is None or self.since >= BALANCE_EVERY:
-            self.model.set_time(t)  # a forcing's F at the step's start
-            self.model.rhs(x0, self.F)
-            self.sigma, self.since = self.rate.scales(self.F.numpy(), x0.numpy()), 0
-        self.norm.atol.assign(np.maximum(self.fraction * dt * self.sigma, ATOL_FLOOR))
-
-    def state(self) -> dict:
-        return {"sigma": None if self.sigma is None else [float(v) for v in self.sigma], "since": self.since}
-
-    def restore(self, state: dict) -> None:
-        self.sigma = None if state["sigma"] is None else np.array(state["sigma"], dtype=np.float64)
-        self.since = int(state["since"])
-
 
 # the model's recorded launch lists kept under control (``LaunchRecorder.limit``): a bound only,
 # as the keys no longer hold Δt (a fixed-Δt run records about 10)

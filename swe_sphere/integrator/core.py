@@ -258,9 +258,7 @@ class Integrator:
 
     def __init__(self, units: list, policy=None, *, anywhere=bool, drop=False, lone=True):
         self.units, self.policy, self.anywhere = list(units), policy or FixedDt(), anywhere
-        self.drop, self.lone = drop, lone
-        self.out: dict[int, int] = {}
-        self.step = 0
+        self.drop, self.lone, self.out, self.step = drop, lone, {}, 0  # out: the units dropped ({index: step})
         # what the loop counts (a driver's ``Ledger`` adds to them; a restart file carries them)
         self.counters = {"rhs_evals": 0, "wall_time": 0.0, "cpu_time": 0.0, "iterations": {}}
         self.control = None  # the step control (``control.StepControl``) under a controlled Δt

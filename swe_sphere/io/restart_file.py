@@ -330,3 +330,27 @@ def read(path) -> dict:
         )
     _check_state(path, planet, stored["x"], state)
     return stored
+
+
+def members_state(parts: list, layout: str) -> tuple:
+    """(x, stepper state) of a run's members as a restart file keeps them (``write``'s ``members``),
+    from ``parts``, (x (3, its members·n), ``Stepper.state()``) of every unit of the run (an
+    ``integrator.core.Unit``: members stepped together) over the ranks in member order: the units'
+    x side by side; with ``layout`` "shared" the one stepper's state (its arrays side by side over
+    the ranks' units), "in_turn" the members' arrays (3, n) side by side (a member without one of
+    them zeros there) and member k's scalars under ``member<k>_``."""
+    if layout == "shared" and len(parts) == 1:
+        return parts[0]
+    arrays = sorted({k for _, st in parts for k, v in st.items() if isinstance(v, np.ndarray)})
+    side = {k: np.concatenate([st.get(k, np.zeros_like(x)) for x, st in parts], axis=-1) for k in arrays}
+    prefix = "" if layout == "shared" else "member{}_"  # in turn, the members' scalars named by member
+    scalars = {prefix.format(j) + k: v for j, (_, st) in enumerate(parts) for k, v in st.items() if k not in arrays}
+    return np.concatenate([x for x, _ in parts], axis=-1), side | scalars
+
+
+def unit_state(state: dict, nodes, prefix: str | None) -> dict:
+    """A unit's stepper state from a restart file's ``state`` (``members_state``'s): its members'
+    columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
+    ``prefix``, without it."""
+    own = state if prefix is None else {k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}
+    return own | {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}

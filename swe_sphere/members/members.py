@@ -22,12 +22,13 @@ from ..core.errors import ArgumentError, CheckpointError, StepFailure
 from ..core.mpi import RankMax
 from ..grid.cubed_sphere import CubedSphere
 from ..integrator.core import FixedDt, Integrator, trouble_line
+from ..io.restart_file import members_state, unit_state
 from ..io.run_file import area_rms, member_statistics
 from ..model.diagnostics import courant_numbers, invariants
 from ..model.shallow_water import ShallowWater
+from ..steppers.stability import stability_limit, stability_line
 from . import initial, units
 from .grid import MemberGrid
-from .stability import stability_limit, stability_line
 
 
 @dataclass
@@ -162,6 +163,12 @@ class Members:
             None if held is None else [np.full_like(m, np.nan) if i in self.out else m for i, m in enumerate(held)]
         )
 
+    def whole(self, read) -> np.ndarray | None:
+        """(N, ..., n) ``read(unit)`` of every member on the whole grid (``each``), on rank 0 (None on the
+        others; a dropped member's NaN, ``shown``; collective)."""
+        each = self.shown(self.each(read, whole=True))
+        return None if each is None else np.stack(each)
+
     def bcast(self, value):
         """Rank 0's ``value`` on every rank (collective)."""
         return self.topology.bcast(value) if self.comm is None else self.comm.bcast(value, root=0)
@@ -181,8 +188,7 @@ class Members:
     def states(self) -> np.ndarray:
         """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
         nodes (a row more for each tracer's mass hq; a dropped member's NaN), on every rank (collective)."""
-        each = self.shown(self.each(lambda u: u.x.numpy(), whole=True))
-        return self.bcast(None if each is None else np.stack(each))
+        return self.bcast(self.whole(lambda u: u.x.numpy()))
 
     def set_states(self, states) -> None:
         """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
@@ -209,13 +215,12 @@ class Members:
     def fields(self) -> tuple:
         """Every member's u, v (m s⁻¹), h (m), (N, n) each on rank 0 ((None, None, None) on the
         others; a dropped member's NaN; collective)."""
-        each = self.shown(self.each(lambda u: u.x.numpy()[:3], whole=True))
-        return (None, None, None) if each is None else tuple(np.stack(each).swapaxes(0, 1))
+        each = self.whole(lambda u: u.x.numpy()[:3])
+        return (None, None, None) if each is None else tuple(each.swapaxes(0, 1))
 
     def divergence(self) -> np.ndarray | None:
         """Every member's divergence of the wind (N, n), DSS'd (s⁻¹), on rank 0 (None elsewhere; collective)."""
-        each = self.shown(self.each(lambda u: u.model.operators.wind_divergence(u.x), whole=True))
-        return None if each is None else np.stack(each)
+        return self.whole(lambda u: u.model.operators.wind_divergence(u.x))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of every member now, or of a
@@ -381,17 +386,6 @@ class Members:
         """The one line of each member dropped, in the order they were (collective)."""
         return self.everyone(self.lines)
 
-    @property
-    def last_good(self):
-        """A single run's state (3, n) at the start of the step or block, which a blow-up's files keep
-        (members: None, their files keep none)."""
-        return None if self.members else self.units[0].start
-
-    @property
-    def series(self) -> tuple | None:
-        """The run file's per-time series of members (each member's are ``member_series``); None: a single run's."""
-        return ("steps", "wall_time") if self.members else None
-
     # -- restart files ---------------------------------------------------------------------
     def restart_parts(self) -> tuple | None:
         """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
@@ -400,7 +394,7 @@ class Members:
         parts = self.on_root([(u.model.topology.gather(u.x.numpy()), u.stepper.state()) for u in self.units])
         if parts is None:
             return None
-        x, state = units.restart_state(parts, self.layout)  # every unit, member order
+        x, state = members_state(parts, self.layout)  # every unit, member order
         if self.members is None:
             return x, state, self.run.initial, self.grid
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
@@ -423,7 +417,7 @@ class Members:
             nodes = np.arange(ck.x.shape[1]).reshape(ck.members, -1)[k].ravel()
             u.x.assign(ck.x[:, nodes])
             prefix = None if self.layout == "shared" else f"member{k[0]}_"
-            u.stepper.restore(units.held_state(ck.stepper_state, nodes, prefix))
+            u.stepper.restore(unit_state(ck.stepper_state, nodes, prefix))
         dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
         self.out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
         self.initial_states = ck.initial.get("initial_states", self.initial_states)

@@ -23,7 +23,7 @@ from ..config.parts import partition, scene_stepper
 from ..config.scene import Scene
 from ..core.arguments import got
 from ..core.backend import Backend
-from ..core.errors import ArgumentError, ResourceError
+from ..core.errors import ArgumentError
 from ..core.runtime import run_bytes
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
@@ -66,27 +66,14 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
 
 def check_memory(scene: Scene, comm, backend: Backend, members: int | None = None) -> None:
     """Refuse (``runtime.ResourceError``, one line, on every rank) a run whose estimated memory
-    exceeds what is available on its device (a GPU's free memory, else the host's): the whole run
-    on one process; over MPI ranks, the share of the ranks on each node, or on CUDA on each GPU
-    (each holds its elements, or its members; ``Backend.sharing``). A run of ``members`` (None: a
-    single run) holds a run's arrays a member (its copies of the grid, or a model each)."""
+    exceeds what is available on its device (``Backend.check_memory`` over the ranks of ``comm``:
+    each holds its elements, or its members). A run of ``members`` (None: a single run) holds a
+    run's arrays a member (its copies of the grid, or a model each)."""
     need = run_bytes(scene.ne, scene.np, scene.stepper, nelem=scene.nelem) * (members or 1)
     what = f"{scene.grid_text} with {scene.stepper}"
     if (members or 1) > 1:
         what = f"an ensemble of {members} members of {what}"
-    if comm is None or comm.size == 1:
-        return backend.check_memory(need, what)
-    local, where = backend.sharing(comm)  # the ranks whose arrays share this rank's memory
-    try:
-        backend.check_memory(need * local // comm.size, f"{what} over {comm.size} MPI ranks ({local} {where})")
-        error = None
-    except ResourceError as err:
-        error = str(err)
-    errors = [e for e in comm.allgather(error) if e is not None]  # every rank refuses if one node must
-    if errors:
-        err = ResourceError(errors[0])
-        err.on_every_rank = True  # the console script says it once (rank 0), without MPI_Abort
-        raise err
+    backend.check_memory(need, what, comm)
 
 
 def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: str) -> tuple:
@@ -169,29 +156,6 @@ def own_units(scene, case, own, grid: CubedSphere, starts, backend, threads: int
             model.hv.use_biharmonic_radius(radius)
         units.append(Unit.of(model, scene_stepper(its_scene, model), start[None], backend, graphs))
     return units, None, units[0].model
-
-
-def restart_state(parts: list, layout: str) -> tuple:
-    """(x, stepper state) of a run's members as a restart file keeps them, from ``parts``, (x (3, its
-    members·n), ``Stepper.state()``) of every unit over the ranks in member order: the units' x side by
-    side; the shared stepper's state (its arrays side by side over the ranks' units), or in turn the
-    members' arrays (3, n) side by side (a member without one of them zeros there) and member k's
-    scalars under ``member<k>_``."""
-    if layout == "shared" and len(parts) == 1:
-        return parts[0]
-    arrays = sorted({k for _, st in parts for k, v in st.items() if isinstance(v, np.ndarray)})
-    side = {k: np.concatenate([st.get(k, np.zeros_like(x)) for x, st in parts], axis=-1) for k in arrays}
-    prefix = "" if layout == "shared" else "member{}_"  # in turn, the members' scalars named by member
-    scalars = {prefix.format(j) + k: v for j, (_, st) in enumerate(parts) for k, v in st.items() if k not in arrays}
-    return np.concatenate([x for x, _ in parts], axis=-1), side | scalars
-
-
-def held_state(state: dict, nodes, prefix: str | None) -> dict:
-    """A unit's stepper state from a restart file's ``state`` (``restart_state``): its members'
-    columns ``nodes`` of the arrays; the scalars as they are (``prefix`` None) or those under
-    ``prefix``, without it."""
-    own = state if prefix is None else {k[len(prefix) :]: v for k, v in state.items() if k.startswith(prefix)}
-    return own | {k: v[..., nodes] for k, v in state.items() if isinstance(v, np.ndarray)}
 
 
 def member_step(unit: Unit, j: int, watch: bool):

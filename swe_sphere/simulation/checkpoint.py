@@ -17,10 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config.resolve import refuse_precision, resolve_stepper_days
-from ..config.resolved import run_end
-from ..config.scene import DT_NOTES, Scene, scene_from_dict, with_days
-from ..config.step_rule import Times, scene_dt
+from ..config.scene import Scene, branched, scene_from_dict, with_days
 from ..core.arguments import path_argument
 from ..core.errors import CheckpointError, SceneError
 from ..core.mpi import from_root
@@ -61,34 +58,13 @@ def run_scene(ck: Checkpoint) -> Scene:
 
 
 def branch(ck: Checkpoint, *, stepper: str | None = None, dt: float | None = None, days: float | None = None) -> Scene:
-    """The scene of a new run from checkpoint ``ck``'s state with ``stepper`` and
-    ``dt`` (s, taken by the scene's step rule, ``config.step_rule.scene_dt``; None: the
-    checkpoint's), to model day ``days`` (from t = 0; None:
-    the checkpoint scene's): a fresh stepper (multistep ones start as at t = 0),
-    step 0 at the checkpoint's day (``Scene.start_day``), output every output
-    interval from there, and ``Scene.branch`` recording the source (its path and
-    SHA-256, step, day, stepper and dt). The stepper's options are the
-    checkpoint's for its own stepper, else the defaults; its precision the checkpoint's.
-    Raises ``SceneError`` (one line) for an unknown stepper, one that cannot step the
-    checkpoint's precision (``refuse_precision``), a dt <= 0, or a run from the branch day to
-    ``days`` or an output interval that is not whole steps of dt."""
-    s = run_scene(ck)
-    stepper = resolve_stepper_days({"stepper": s.stepper}, stepper)[0]  # the checkpoint's, or another known one
-    refuse_precision(s.precision, stepper)
+    """The scene of a new run from checkpoint ``ck``'s state with ``stepper`` and ``dt`` (s;
+    None: the checkpoint's), to model day ``days`` (from t = 0; None: the checkpoint scene's):
+    ``config.scene.branched`` of its scene (``run_scene``) at its day, ``Scene.branch``
+    recording the source (its path and SHA-256, step, day, stepper and dt). Raises
+    ``SceneError`` as ``branched``."""
     record = {"restart": None if ck.path is None else str(ck.path), "sha256": ck.sha256, "step": ck.step}
-    record |= {"day": ck.day, "stepper": s.stepper, "dt": s.dt}
-    # the notes on how the scene's dt was chosen are stale once dt is given
-    notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
-    opts = s.stepper_options if stepper == s.stepper else {}
-    scene = replace(s, stepper=stepper, stepper_options=opts, branch=record, notes=notes)
-    days = s.days if days is None else days
-    if dt is None:  # the restart file's Δt, its scene's rule's
-        return with_days(scene, days)
-    # a Δt given: the scene's rule takes it as given (> 0, whole steps of the run from the branch day and
-    # of its output interval; the grid's spacing unasked: a given Δt is not scaled)
-    times = Times(run_end(days, scene.start_day), s.output_every_days, start=scene.start_day)
-    dt = scene_dt(None, dt, s.name, s.grid, None, times, controlled=s.control is not None)[0]
-    return replace(scene, dt=float(dt), days=times.days)
+    return branched(run_scene(ck), record | {"day": ck.day}, stepper, dt, days)
 
 
 def branch_attrs(scene: Scene) -> dict:

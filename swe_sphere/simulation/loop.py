@@ -75,16 +75,16 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
     (``cli.progress.ProgressLines``: ``start``, ``tick``; or None), the seconds compiling added to ``compiling[0]``. The
     first output time recorded first (``start`` its gathered fields, ``diagnosed`` their diagnostics
     where taken), a continuation's not written again: the two files join without a repeat. ``ends``
-    the run's diagnostics (``members.members.Members``): where
-    they have a ``last_good`` state (a single run's) a blow-up's line is the files' attribute
-    ``blowup`` and that state recorded, and on an exception the files are dropped; where not (a
-    run of members') the files keep the line, or the exception's, as ``stopped``. A signal's step
+    the run's members (``members.members.Members``): a single run's blow-up line is the files'
+    attribute ``blowup`` and its last good state (the step's start) recorded, and on an exception the
+    files are dropped; a run of members' files keep the line, or the exception's, as ``stopped``. A signal's step
     recorded, its attributes (``interrupted``, its name, ``interrupted_at_step`` and
     ``interrupted_at_day``) and its restart file. The files closed with the members dropped
     (``ends.drops``, as ``dropped_members``). Returns why the steps stopped, a signal after the last
     step's check taken as one (the output is whole)."""
     # single-threaded BLAS: the Krylov solvers' vectors are too short for threads to
     # pay, and on a busy machine OpenBLAS's spinning threads made a norm cost 10 ms
+    one = ends.members is None  # a single run: a blow-up's files keep its last good state, else its line
     with signals, threadpool_limits(limits=1, user_api="blas"):
         try:
             with during, compile_timer(compiling):
@@ -95,8 +95,8 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
                 on = {"disable": None if progress else True, "file": sys.stderr, "dynamic_ncols": True}
                 with tqdm(initial=run.step, total=run.scene.nsteps, unit="step", **on) as bar:
                     stop = blocks(bar)
-                if stop.blowup is not None and ends.last_good is not None:  # ``run.step`` is the last good step again
-                    files.end(ends.last_good, blowup=stop.blowup)
+                if stop.blowup is not None and one:  # ``run.step`` is the last good step again: its start kept
+                    files.end(ends.units[0].start, blowup=stop.blowup)
                 elif stop.blowup is not None:
                     files.set_attrs(stopped=stop.blowup)
                 elif stop.signum is not None:
@@ -108,7 +108,7 @@ def integrate(run, files, ckp, start, signals, blocks, during, ends, diagnosed, 
                 files.set_attrs(**({"dropped_members": "; ".join(drops)} if drops else {}))
             files.close()  # under this run's handlers: a signal now waits, and is answered below
         except BaseException as err:
-            if ends.last_good is not None:
+            if one:
                 files.abort()
             else:
                 files.set_attrs(stopped=str(err) or type(err).__name__)
@@ -194,7 +194,7 @@ def open_files(sim, output, overwrite, restart_every, restart_file, compress, hi
     name the run gives its own."""
     d, paths = sim.members, (output, restart_every, restart_file, overwrite)
     ckp = Checkpointer(sim.run_state, sim.write_checkpoint, d.bcast, sim.root, *paths)
-    files = RunFiles(sim.run_state, d, sim.grid, sim.hs, output, on_output, d.series)
+    files = RunFiles(sim.run_state, d, sim.grid, sim.hs, output, on_output)
     check_run_files(sim.activities, sim.root, sim.inputs, files, ckp, overwrite)
     with compile_timer(compiling):  # a continuation's first use of the diagnostic kernels
         start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank

@@ -82,15 +82,7 @@ class Ledger:
     def result(self, step: int, history: list, **rest) -> RunResult:
         """The ``RunResult`` of the run at ``step`` with ``history`` (``rest`` as ``RunResult`` names
         them: ``courant``, ``output``, ``blowup``, ``checkpoint``, ``setup_time``, ``compile_time``)."""
-        return RunResult(
-            steps=step,
-            rhs_evals=self.c["rhs_evals"],
-            wall_time=self.c["wall_time"],
-            diagnostics=history[-1],
-            history=history,
-            iterations=dict(self.c["iterations"]),
-            first_step_time=self.first_time,
-            first_step=self.first_step,
-            loop_time=self.c["wall_time"] - self.wall0,
-            **rest,
-        )
+        c, first = self.c, {"first_step_time": self.first_time, "first_step": self.first_step}
+        counts = {"rhs_evals": c["rhs_evals"], "wall_time": c["wall_time"], "iterations": dict(c["iterations"])}
+        loop = c["wall_time"] - self.wall0
+        return RunResult(step, diagnostics=history[-1], history=history, loop_time=loop, **counts, **first, **rest)

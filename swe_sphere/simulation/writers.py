@@ -25,33 +25,26 @@ def restart_path(output: Path) -> Path:
     return stream_path(output, "restart").with_suffix(".nc")
 
 
-def scene_attrs(scene, kind: str, history: str | None, caller: str) -> dict:
-    """The global attributes every run file of ``scene`` opens with: its title (a ``kind`` of
-    scene, "run" or "ensemble"), ``history`` (the command line; None: ``caller`` of scene …),
-    the package, the scene (JSON) and its case, grid, stepper, Δt and ``precision`` (the
-    tendency's, ``Scene.precision``)."""
-    return {
-        "title": f"swe_sphere {kind} of scene {scene.name}",
-        "history": history_line(history or f"{caller} of scene {scene.name}"),
-        "source": f"swe_sphere {package_version()}",
-        "swe_sphere_version": package_version(),
-        "scene": scene.as_dict(),
-        **{k: getattr(scene, k) for k in ("case", "ne", "np", "stepper", "dt", "precision")},
-    }
-
-
 def opening(d, files, start, history: str | None, name: str, dfi, device: str) -> tuple:
     """(the Courant numbers of a single run's ``start`` (members: none), the members' first
     diagnostics (a single run: None, the files take them), the global attributes of the run's files
     ``files``, and what else ``RunFiles.open`` takes (members: ``members``, ``member_series``, which
     ``files`` gets)) of the run of members ``d`` (``members.members.Members``; ``start`` its
-    ``gather_fields``): what ran (``scene_attrs``; ``name`` the caller), where (on ``device`` over the
+    ``gather_fields``): what ran (its title, ``history`` or ``name`` the caller, the package, the scene
+    (JSON) and its case, grid, stepper, Δt and precision), where (on ``device`` over the
     MPI ranks), from which start (the digital filter ``dfi`` or None; members: ``initial_states``), its
     command line (``history``), a single run's Courant numbers at the start and a branch's origin."""
     s, run = d.run.scene, d.run
-    kind = "ensemble" if d.members else "run"
-    # what ran, then e.g. which Butcher table ran and where
-    attrs = {**scene_attrs(s, kind, history, name), **run.stepper.attrs(), "device": device}
+    attrs = {  # what ran, then e.g. which Butcher table ran and where
+        "title": f"swe_sphere {'ensemble' if d.members else 'run'} of scene {s.name}",
+        "history": history_line(history or f"{name} of scene {s.name}"),
+        "source": f"swe_sphere {package_version()}",
+        "swe_sphere_version": package_version(),
+        "scene": s.as_dict(),
+        **{k: getattr(s, k) for k in ("case", "ne", "np", "stepper", "dt", "precision")},
+        **run.stepper.attrs(),
+        "device": device,
+    }
     again = {"continued_from_day": run.time} if run.step else {}
     if d.members:
         first = d.diagnose(run.seconds(run.step), whole=start)
@@ -88,9 +81,9 @@ class RunFiles:
     per-time series and ``member_series`` (set after its first diagnostics) those of each member
     (time, member), the members along the member axis."""
 
-    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None, series=None):
-        controlled = run.control is not None
-        if series is None:  # a run's
+    def __init__(self, run, diagnostics, grid, hs, output: Path | None, on_output=None):
+        controlled, series = run.control is not None, ("steps", "wall_time")  # members': each member's apart
+        if not diagnostics.members:  # a single run's
             solvers = [f"{k}_iterations" for k in run.stepper.solvers]
             # what the run file records of the step control at each output time (``SERIES_ATTRS``)
             control = ("dt", "rejected_steps", "error_estimate", "spatial_rate") if controlled else ()

@@ -30,6 +30,9 @@ ARKODE's (``SUNAdaptController_Soderlind``: I, PI, PID, H211) and Ranocha, Dalci
 Parsani & Ketcheson's (2022, Commun. Appl. Math. Comput. 4, 1191) PID sets tuned for
 ``bs32``, ``ssprk43`` and ``rdpk3sp35``.
 
+``Balance``: the absolute tolerances of the balanced mode, held to a fraction of the spatial
+error's rate (``SpatialRate``).
+
 ``CflController``: the next step from the Courant numbers of this one, as the model's
 diagnostics compute them (``model.diagnostics.courant_numbers``), toward a target, growing
 at most ``max_change`` a step (WRF's ``target_cfl``, Oceananigans' ``TimeStepWizard``); alone,
@@ -116,7 +119,7 @@ class ErrorNorm:
     (h a depth: a scene with a pressure gradient) a step that ends with h ≤ 0 anywhere has
     the norm +inf, and one with a non-finite value NaN or inf: a finite norm is a state the
     bad-node check (``model.bad_nodes``) passes. ``atol`` (3,) the device array of the
-    absolute tolerances (u, v, h), which a caller may set between norms (``integrator.control.Balance``).
+    absolute tolerances (u, v, h), which a caller may set between norms (``Balance``).
     ValueError for a negative tolerance, or rtol 0 with an atol 0."""
 
     def __init__(self, topology, rtol: float, atol_wind: float = 1e-3, atol_h: float = 1e-2, check_depth: bool = False):
@@ -252,7 +255,7 @@ class SpatialRate:
     RMS weighted by spheremp, the sums ``Topology.whole_sums``' (the same bits on any rank
     count). A row
     of x that is zero everywhere takes the largest rate times 0. About 1 ms at ne30 (one thread),
-    every ``integrator.control.BALANCE_EVERY`` steps."""
+    every ``BALANCE_EVERY`` steps."""
 
     def __init__(self, topology):
         grid = topology.grid
@@ -274,6 +277,50 @@ class SpatialRate:
         rate = self.last = float(np.max(np.sqrt(np.divide(tails, states, out=np.zeros(2), where=states > 0))))
         rms = np.sqrt(states / np.array([2.0 * self.area, self.area]))  # a wind component's, h's
         return rate * rms[[0, 0, 1]]
+
+
+# under "balanced", the spatial error's rate is estimated again after this many accepted steps
+# (one RHS evaluation and a pass over the state: 1/16 of an RHS a step), and no absolute
+# tolerance falls below ATOL_FLOOR (each row's units, m s⁻¹ and m: the round-off of a state)
+BALANCE_EVERY = 16
+ATOL_FLOOR = 1e-12
+
+
+class Balance:
+    """The balanced mode's tolerances (``control = "balanced"``) for ``norm`` (an ``ErrorNorm``
+    with rtol 0) on ``unit``'s model and grid (its ``model`` and state ``x``: the step control's
+    ``integrator.core.Unit``), held to ``fraction`` (``SceneControl.balance``).
+    ``tolerances(x0, t, dt)`` before a try's norm: every ``BALANCE_EVERY`` accepted steps the
+    scales σ (3,) of ``SpatialRate`` from F(x0) at the step's start t (s), one RHS evaluation;
+    then atol_r = max(fraction · Δt · σ_r, ``ATOL_FLOOR``): the step's error estimate held to
+    ``fraction`` of the spatial error the grid makes over Δt, on every row alike (σ is the
+    largest row's relative rate times each row's RMS). Why rates and not the errors
+    themselves: both errors grow with time and are carried by the same flow (Galewsky ne30's
+    spatial error grows 150-fold from day 1 to day 6 while the state's highest-mode tail does not
+    triple), so balancing what each step adds balances their sums as far as the flow carries
+    them alike; a step's estimate being a local error, the mode is per unit step (Δt in the
+    tolerance). ``state``/``restore``: σ and the steps since its estimate (a restart continues
+    bitwise)."""
+
+    def __init__(self, fraction: float, unit, norm: ErrorNorm):
+        self.fraction, self.model, self.norm = float(fraction), unit.model, norm
+        self.rate = SpatialRate(unit.model.topology)
+        self.F = wp.zeros_like(unit.x)
+        self.sigma, self.since = None, 0
+
+    def tolerances(self, x0, t: float, dt: float) -> None:
+        if self.sigma is None or self.since >= BALANCE_EVERY:
+            self.model.set_time(t)  # a forcing's F at the step's start
+            self.model.rhs(x0, self.F)
+            self.sigma, self.since = self.rate.scales(self.F.numpy(), x0.numpy()), 0
+        self.norm.atol.assign(np.maximum(self.fraction * dt * self.sigma, ATOL_FLOOR))
+
+    def state(self) -> dict:
+        return {"sigma": None if self.sigma is None else [float(v) for v in self.sigma], "since": self.since}
+
+    def restore(self, state: dict) -> None:
+        self.sigma = None if state["sigma"] is None else np.array(state["sigma"], dtype=np.float64)
+        self.since = int(state["since"])
 
 
 @dataclass

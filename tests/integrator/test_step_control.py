@@ -17,8 +17,9 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import BlowUp
 from swe_sphere.core.tally import Tally, instrumented
-from swe_sphere.integrator.control import ATOL_FLOOR, BALANCE_EVERY, CAP_EVERY, DT_GRID, StepControl
+from swe_sphere.integrator.control import CAP_EVERY, DT_GRID, StepControl
 from swe_sphere.model.diagnostics import courant_numbers
+from swe_sphere.steppers.control import ATOL_FLOOR, BALANCE_EVERY
 
 from helpers import assert_same_runs, make_sim, watched_run
 

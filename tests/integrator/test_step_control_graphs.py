@@ -1,4 +1,4 @@
-"""A controlled run's tries replayed as graphs (``integrator.Unit.try_step``, ``integrator.control.StepControl``).
+"""A controlled run's tries replayed as graphs (``integrator.core.Unit.try_step``, ``integrator.control.StepControl``).
 
 The controller's Δt are those of its grid (``on_grid``), so a few recur and each keeps a graph
 keyed by it (``GraphCapture.graph_key``; an FSAL pair's key also says whether its first stage was
@@ -18,7 +18,7 @@ import pytest
 import warp as wp
 
 from swe_sphere.config.scene import load_scene
-from swe_sphere.integrator import Unit
+from swe_sphere.integrator.core import Unit
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import ON_CUDA

@@ -1,6 +1,7 @@
-"""A stepper's stability limit read against a member's Courant numbers (``Members.stability_warning``,
-``Members.largest_dt_within_limit``): the limit measured, or a table's from its stability
-polynomial, and the one-line warning where Δt passes it."""
+"""A stepper's stability limit read against a state's Courant numbers (``Stepper.courant_limit``
+and ``advective_courant_limit``: the limit measured, or a table's from its stability polynomial)
+and the one-line warning where Δt passes it: a run's ``Simulation.stability_warning`` and
+``largest_dt_within_limit``, for each member (``members.members.Members``)."""
 
 from __future__ import annotations
 

@@ -8,8 +8,8 @@ alternating rounds (the two never apart by more than one round's drift):
 1. the RHS (``model.rhs``: the tendency and its DSS) in element-local points a second;
 2. a step of the scene's stepper (its stages' ``rhs_update``, the ∇⁴ every k steps as the scene
    says), ms;
-3. the bytes of the device arrays the run holds (the model's, its operators', topology's, ∇⁴'s
-   and tendency's arrays and the stepper's, each array once);
+3. the bytes of the device arrays the run holds (the state, the model's, its operators',
+   topology's, ∇⁴'s and tendency's arrays and the stepper's, each array once);
 
 then, with ``--peak-ne``, the peak resident memory of a short ``swe-sphere run`` of TC5 in a
 child process in each precision. Medians of ``--rounds``; ``--clock cpu`` (the default) times
@@ -49,8 +49,10 @@ PRECISIONS = ("float64", "float32")  # the default; ``--precisions`` adds "float
 
 
 def device_bytes(*owners) -> int:
-    """Bytes of the distinct Warp arrays held by ``owners`` and their attributes one level down
-    (a model's operators, topology, ∇⁴ and tendency arrays; a stepper's buffers)."""
+    """Bytes of the distinct Warp arrays among ``owners`` (a state) and held by them and their
+    attributes one level down (a model's operators, topology, ∇⁴ and tendency arrays; a
+    stepper's buffers), in lists, tuples and dicts too (a stepper's buffers by name, the ∇⁴'s
+    geometry)."""
     seen: dict[int, int] = {}
 
     def note(value):
@@ -67,8 +69,8 @@ def device_bytes(*owners) -> int:
         )
         for value in values:
             note(value)
-            if isinstance(value, (list, tuple)):
-                for v in value:
+            if isinstance(value, (list, tuple, dict)):
+                for v in value.values() if isinstance(value, dict) else value:
                     note(v)
             elif (
                 depth
@@ -78,6 +80,7 @@ def device_bytes(*owners) -> int:
                 walk(value, depth - 1)
 
     for owner in owners:
+        note(owner)
         walk(owner, 2)
     return sum(seen.values())
 
@@ -181,7 +184,7 @@ def main(argv=None):
             n = built["float64"][0].N
             rate = {p: n / statistics.median(rhs[p]) / 1e6 for p in precisions}
             ms = {p: 1e3 * statistics.median(step[p]) for p in precisions}
-            mib = {p: device_bytes(built[p][0], built[p][1]) / 2.0**20 for p in precisions}
+            mib = {p: device_bytes(*built[p]) / 2.0**20 for p in precisions}
             row = dict(nodes=n, rhs_mpts=rate, step_ms=ms, device_mib=mib)
             figures[key] = row
             cells = [key, str(n)]

@@ -1,8 +1,8 @@
 """The tracers' shape-preserving limiter of a ``ShallowWater`` model (a scene's ``tracers.limiter``):
 Guba, Taylor & St-Cyr (2014)'s optimisation-based limiter as HOMME applies it
 (``limiter_optim_iter_full``, ``limiter_option = 8``): on each explicit stage's element-local
-values before their DSS (HOMME's ``euler_step``), and on the assembled state after the ∇⁴ (the
-kernels: ``kernels.limiter``)."""
+values before their DSS (HOMME's ``euler_step``), the tracers' ∇⁴ substeps and stages included
+(the kernels: ``kernels.limiter``)."""
 
 from __future__ import annotations
 
@@ -20,9 +20,10 @@ class TracerLimiter:
     bounds from a state (its q's and its neighbours' extremes: the start of a step), ``stage``
     limits a stage's element-local tracer values into them before their DSS, keeping each
     element's tracer mass (``ShallowWater.rhs_update``'s ``limit``: the DSS of the limited values
-    is a convex combination of them at each node, no new extremum, the integral kept), ``apply``
-    an assembled state's likewise (the values after the ∇⁴, which is split from the stages).
-    Element-local, the neighbours' bounds exchanged as a min and a max: the same bits on any
+    is a convex combination of them at each node, no new extremum, the integral kept); the
+    tracers' ∇⁴ limits its own (``model.hyperviscosity.Hyperviscosity.build_tracers``), so a
+    step's end holds nothing more to limit (a pass over it there changed the transport test's
+    extremes by round-off alone: ne4 np4, 1.5 days). Element-local, the neighbours' bounds exchanged as a min and a max: the same bits on any
     ranks. Mass is kept to round-off, the bounds met to ``tol`` of an element's mass after at most
     np² − 1 passes (HOMME's).
 
@@ -92,15 +93,3 @@ class TracerLimiter:
         rows = m.operators.as_rows
         args = [wp.vec3d(*a, *flux), *map(rows, (*srcs, tend)), *self._limits()]
         return [m.launches.elements(kernel, args), *m.topology.dss(self.work, True, update.out[3:])]
-
-    def apply(self, x: wp.array2d) -> None:
-        """Limit x's tracer masses (rows 3..) in place into the bounds ``bound`` took last."""
-        m = self.model
-
-        def build():  # the stage kernel on x alone (its weights a = (1, 0, 0): x's own values)
-            rows = m.operators.as_rows(x)
-            args = [wp.vec3d(1.0, 0.0, 0.0), rows, rows, rows, *self._limits()]
-            kernel = limiter.limit_stage(False, 0, m.grid.np)
-            return [m.launches.elements(kernel, args), *m.topology.dss(self.work, True, x[3:])]
-
-        m.launches.replay(("limiter", x.ptr), (x,), build)

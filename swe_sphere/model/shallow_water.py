@@ -171,7 +171,7 @@ class ShallowWater:
     limiter : "none" (default) or "optimization": the tracers' shape-preserving limiter
         (``limiter.TracerLimiter``: Guba et al. 2014, HOMME's limiter 8) within the bounds of a
         step's start, which an explicit Runge–Kutta stepper applies to each stage's element-local
-        values before their DSS (``rhs_update``'s ``limit``) and to the state after the ∇⁴.
+        values before their DSS (``rhs_update``'s ``limit``) and to the tracers' ∇⁴.
     tracer_hyperviscosity : True (default): the tracers take the ∇⁴ (``tracers`` above); False:
         none on them (q = 1 then drifts where the depth is damped; their masses are still kept).
 

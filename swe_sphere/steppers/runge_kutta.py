@@ -223,8 +223,6 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
             self._hyperviscosity(x)
             if y is not x:
                 self.model.restore_mass(x)
-            if limiter is not None:
-                limiter.apply(x)
             return StepStats(len(self._stages))
         evals = len(self._stages)  # s − 1 stages; the FSAL evaluation after the ∇⁴ stands for the first
         (c0, arg0, first), *rest = self._stages

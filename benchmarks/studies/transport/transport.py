@@ -10,7 +10,8 @@ undershoots φmax, φmin, each mass's relative change, and the l2 rates between 
 the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8); the bells' filament
 diagnostic l_f(τ) and the correlated pair's mixing diagnostics l_r, l_u, l_o at T/2 (``filaments``,
 ``mixing``). ``--maps
-PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files.
+PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files. ``--results STEM``:
+the figures' file (a grid run on its own beside a longer run's).
 
     python benchmarks/studies/transport/transport.py --ne 10 20 30 --limiter optimization \\
         --maps docs/explanation/transport_bells.png
@@ -159,6 +160,9 @@ def main() -> None:
     parser.add_argument(
         "--limiter", choices=("none", "optimization"), default="none", help="tracers.limiter (Guba et al. 2014's)"
     )
+    parser.add_argument(
+        "--results", metavar="STEM", help="results/transport/STEM.json (default: transport, or the variant's name)"
+    )
     args = parser.parse_args()
     quiet_warp()
     # the default's file transport.json; a variant's names what differs (transport_optimization_np8)
@@ -167,7 +171,7 @@ def main() -> None:
         for v, default in ((args.limiter, "none"), (args.flow, "nondivergent"), (f"np{args.np}", "np4"))
         if v != default
     ]
-    stem = "_".join(["transport", *variant]) if variant else None
+    stem = args.results or ("_".join(["transport", *variant]) if variant else None)
     with recorded(__file__, stem) as figures, tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)

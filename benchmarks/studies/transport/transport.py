@@ -10,8 +10,10 @@ undershoots φmax, φmin, each mass's relative change, and the l2 rates between 
 the tracers' limiter (Guba et al. 2014's "optimization", HOMME's limiter 8); the bells' filament
 diagnostic l_f(τ) and the correlated pair's mixing diagnostics l_r, l_u, l_o at T/2 (``filaments``,
 ``mixing``). ``--maps
-PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files. ``--results STEM``:
-the figures' file (a grid run on its own beside a longer run's).
+PNG``: the bells at T/2 and T (the finest grid's). ``--keep DIR``: the run files (``run_name``); one
+already there, kept by an earlier call, is scored again, not rerun (delete it to rerun it), so that
+grids run in separate calls are scored and their rates taken in one. ``--results STEM``: the
+figures' file (a grid run on its own beside a longer run's).
 
     python benchmarks/studies/transport/transport.py --ne 10 20 30 --limiter optimization \\
         --maps docs/explanation/transport_bells.png
@@ -39,6 +41,11 @@ HOMME_L2 = {
     10: {"bells": 0.347, "hills": 0.182, "cylinders": 0.437},
     20: {"bells": 0.120, "hills": 0.0458, "cylinders": 0.331},
 }
+
+
+def run_name(flow: str, ne: int, np_: int, limiter: str) -> str:
+    """The run file's name in ``--keep``'s folder: the flow's case, the grid and the limiter."""
+    return f"{FLOWS[flow]}_ne{ne}_np{np_}{'' if limiter == 'none' else '_' + limiter}.nc"
 
 
 def scores(path: Path, names) -> dict:
@@ -179,8 +186,9 @@ def main() -> None:
         for ne in args.ne:
             over = {"output.every_days": args.days / 2, "tracers.limiter": args.limiter, "case.name": FLOWS[args.flow]}
             scene = load_scene(SCENE, ne=ne, np_=args.np, days=args.days, overrides=over)
-            path = folder / f"{FLOWS[args.flow]}_ne{ne}_np{args.np}.nc"
-            Simulation(scene, "cpu", progress=False).run(path, overwrite=True)
+            path = folder / run_name(args.flow, ne, args.np, args.limiter)
+            if not path.exists():  # a run file is renamed into place only when complete
+                Simulation(scene, "cpu", progress=False).run(path)
             names = [name for name, _ in scene.tracers]
             got = scores(path, names)
             figures[f"ne{ne}"] = got
@@ -215,7 +223,7 @@ def main() -> None:
             figures[f"rate_ne{a}_ne{b}"] = rates
             print(f"l2 rate ne{a} -> ne{b}: " + ", ".join(f"{n} {r:.2f}" for n, r in rates.items()))
         if args.maps is not None:
-            maps(folder / f"{FLOWS[args.flow]}_ne{grids[-1]}_np{args.np}.nc", args.maps)
+            maps(folder / run_name(args.flow, grids[-1], args.np, args.limiter), args.maps)
             print(f"maps: {args.maps}", file=sys.stderr)  # a file written, not a figure
 
 

@@ -50,7 +50,7 @@ _LAZY = {
     "HeightMisfit": "adjoint.costs",
     "PointHeights": "io.observations",  # h at points, the observation operator H and Hᵀ
     "HeightObservations": "io.observations",  # a cost of the run: observed h at several steps
-    "Ensemble": "ensemble.ensemble",  # deprecated: Simulation(scene, members=N)
+    "Ensemble": "ensemble",  # deprecated: Simulation(scene, members=N)
     "Perturbation": "members.initial",  # an ensemble's seeded noise in h
     "MemberFile": "members.initial",  # an ensemble's initial states from an ensemble's run file
     "Variants": "members.initial",  # an ensemble's members with their own case parameters and Ω

@@ -15,7 +15,7 @@ from typing import NamedTuple
 from ..cases.library import Case, make_case
 from ..cases.reference import cases_of, locate, stored_days
 from ..cases.tracers import TRACER_FIELDS
-from ..core.arguments import got
+from ..core.arguments import band_argument, got
 from ..core.clock import Clock
 from ..core.constants import EARTH, Planet
 from ..core.errors import SceneError
@@ -201,22 +201,14 @@ def resolve_ensemble(table: dict | None) -> dict | None:
         raise SceneError(f"ensemble.perturbation must be a number of metres >= 0 (got {amplitude!r})")
     if seed < 0:
         raise SceneError(f"ensemble.seed must be an integer >= 0 (got {seed!r})")
-    degrees = table.get("degrees")
-    if degrees is not None and not (
-        len(degrees) == 2
-        and all(isinstance(d, int) and not isinstance(d, bool) for d in degrees)
-        and 1 <= degrees[0] <= degrees[1]
-    ):
-        raise SceneError(
-            f"ensemble.degrees must be [l_min, l_max], integers 1 <= l_min <= l_max (got {list(degrees)!r})"
-        )
+    degrees = band_argument("ensemble.degrees", table.get("degrees"), error=SceneError)
     # the values given first: -s ensemble.degrees=[20,1] with --members is refused for its degrees
     if members is None:
         raise SceneError("ensemble.members is missing: an [ensemble] table names its members (an integer >= 1)")
     if members < 1:
         raise SceneError(f"ensemble.members must be an integer >= 1 (got {members!r})")
     out = {"members": int(members), "perturbation": float(amplitude), "seed": int(seed)}
-    return out | ({} if degrees is None else {"degrees": tuple(degrees)})
+    return out | ({} if degrees is None else {"degrees": degrees})
 
 
 def _table_grid(grid: dict, scene_path: Path, file_folder: Path | None = None) -> SceneGrid:

@@ -121,3 +121,18 @@ __all__ = [
     "callable_argument",
     "instance_argument",
 ]
+
+
+def band_argument(name: str, value, top: int | None = None, error=ArgumentError) -> tuple | None:
+    """``value`` as a band of spherical-harmonic degrees (l_min, l_max): None, or two integers
+    1 ≤ l_min ≤ l_max (≤ ``top`` where given; not bools); ``error`` names ``name``."""
+    pair = isinstance(value, tuple | list) and len(value) == 2
+    if value is not None and not (
+        pair
+        and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in value)
+        and 1 <= value[0] <= value[1] <= (value[1] if top is None else top)
+    ):
+        shown = list(value) if isinstance(value, tuple | list) else value
+        bound = "" if top is None else f" <= {top}"
+        raise error(f"{name} must be [l_min, l_max], integers 1 <= l_min <= l_max{bound} (got {shown!r})")
+    return None if value is None else (int(value[0]), int(value[1]))

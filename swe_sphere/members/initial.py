@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from ..core.arguments import array_argument, got, integer_argument, number_argument
+from ..core.arguments import array_argument, band_argument, got, integer_argument, number_argument
 from ..core.errors import ArgumentError, SceneError
 from ..grid.cubed_sphere import CubedSphere
 from ..io.run_file import member_states
@@ -44,13 +44,7 @@ class Perturbation:
     def __post_init__(self):
         number_argument("perturbation amplitude", self.amplitude, "m", low=0.0)
         integer_argument("perturbation seed", self.seed, 0)
-        d = self.degrees
-        ok = isinstance(d, tuple | list) and all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in d)
-        if d is not None and not (ok and len(d) == 2 and 1 <= d[0] <= d[1] <= MAX_DEGREE):
-            raise ArgumentError(
-                f"perturbation degrees must be two integers 1 <= l_min <= l_max <= {MAX_DEGREE} (got {got(d)})"
-            )
-        object.__setattr__(self, "degrees", None if d is None else (int(d[0]), int(d[1])))
+        object.__setattr__(self, "degrees", band_argument("perturbation degrees", self.degrees, MAX_DEGREE))
 
     def apply(self, grid: CubedSphere, state: np.ndarray, members: int) -> np.ndarray:
         """(members, 3, n): ``state`` (3, n) on ``grid``'s element-local nodes, perturbed."""

@@ -133,7 +133,9 @@ def test_a_perturbation_of_a_band_of_degrees_holds_those_degrees_alone():
     assert same_bits(band.apply(grid, state, 2), band.apply(grid, state, 2))
     assert not np.array_equal(h[0], h[1])
     for bad in ((0, 3), (5, 4), (1, 10**4), (1.0, 3), (2,)):
-        with pytest.raises(ArgumentError, match="perturbation degrees must be two integers"):
+        with pytest.raises(
+            ArgumentError, match=r"perturbation degrees must be \[l_min, l_max\], integers 1 <= l_min <= l_max <= 2048"
+        ):
             Perturbation(1.0, degrees=bad)
 
 

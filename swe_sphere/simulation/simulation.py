@@ -511,7 +511,8 @@ class Simulation:
         -------
         xarray.Dataset or None
             On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹), vorticity, divergence (s⁻¹) on
-            ``ncol`` (N > 1: on (``member``, ``ncol``), the ``squeeze`` rule) with hs, area, lat, lon and ``time`` in
+            ``ncol`` (N > 1: on (``member``, ``ncol``), the ``squeeze`` rule) with hs (every member's: members share
+            it, ``members.initial.initial_states`` refuses Variants whose hs differ), area, lat, lon and ``time`` in
             days (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
 
         Raises

@@ -14,7 +14,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..cases.scoring import Scorer
 from ..core.arguments import got
@@ -62,7 +61,7 @@ class Members:
     run's ``run_state.RunState`` (set by the driver). Rank 0 diagnoses the whole grid (the same
     arithmetic on any number of ranks) and broadcasts the figures."""
 
-    dfi = scorer = copies = one = cases = variants = None
+    dfi = scorer = copies = cases = variants = None
     alike, initial_states = False, "the case's"
 
     def __init__(
@@ -85,10 +84,9 @@ class Members:
                 scene, backend, comm, given, start, graphs
             )
             self.units, self.layout, self.scorer, self.nnodes = [unit], "shared", [scorer], topo.nnodes_total
-            self.root = topo.comm.rank == 0
+            self.root, self.g = topo.comm.rank == 0, [unit.model.g]
             # the whole grid's hs and f on rank 0 alone (gathered), a member's axis added
             self.hs, self.fcor = (None, None) if hs is None else (hs[None], fcor[None])
-            self.g = [unit.model.g]
         else:
             self._build(scene, members, start, backend, graphs, layout, **options)
         self.unit_held = [self.held] if self.layout == "shared" else list(self.held[:, None])
@@ -109,19 +107,23 @@ class Members:
         self.initial_states = initial.described(start)
         # measured on the starts made, whatever made them (a perturbation lost in h's rounding, a file, --vary)
         self.alike = initial.stay_alike(starts, start)
-        self.options = {"device": backend.device, **options}
+        models = {"device": backend.device, **options}  # what each ShallowWater takes
         self.layout = units.layout(scene, start, layout, backend.device, own=self.blow_up == "drop")
         # the held members' own (scene, case) with Variants, else None: the scene's and its case
         own = None if self.cases is None else [(scenes[k], self.cases[k]) for k in self.held]
         # built under Simulation's one BLAS thread, as a single run's: the ∇⁴'s power iteration takes 40 norms
         threads = backend.threads() if options["threads"] is None else options["threads"]
-        parts = (grid, starts[self.held], backend, threads, self.options, graphs)
+        parts = (grid, starts[self.held], backend, threads, models, graphs)
         build = units.shared_unit if self.layout == "shared" else units.own_units
-        self.units, self.copies, self.one = build(scene, case, own, *parts)
+        self.units, self.copies, one = build(scene, case, own, *parts)
         # hs and f on the host (held, n), read at every output time (the grid's and the members' alone); g a member
         self.hs = self.each(lambda u: u.model.operators.hs.numpy())
         self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
         self.g, self.nnodes = [u.model.g for u in self.units for _ in range(u.members)], grid.nnodes
+        one = one or ShallowWater.from_scene(scene, grid, case, **models)  # one member's: the wind errors' ζ and δ
+        # each variant's own truth, an exact solution (a reference holds the scene's values only)
+        cases, ref = ([case], scene.reference_file) if self.cases is None else (self.cases, None)
+        self.scorer = [Scorer(c, one, one.topology, grid, self.hs[0], ref) for c in cases]
         if self.alike and self.root:  # once built (a refusal says its own line alone); said at Simulation's caller
             warnings.warn(initial.alike_line(members), initial.MembersAlike, stacklevel=4)
 
@@ -259,12 +261,6 @@ class Members:
         """Each of this rank's members' errors at ``t`` (s) against the case's truth
         (``cases.scoring.Scorer.errors``; each variant's own) of their states on this rank's nodes
         ``local`` (held, ≥ 3, its n) and on the whole grid ``held`` (None on a single run's ranks > 0)."""
-        if self.scorer is None:  # one member's model for the wind errors' vorticity and divergence
-            with threadpool_limits(limits=1, user_api="blas"):
-                one = self.one or ShallowWater.from_scene(self.scene, self.grid, self.case, **self.options)
-            # each variant's own truth, an exact solution (a reference holds the scene's values only)
-            cases, ref = ([self.case], self.scene.reference_file) if self.cases is None else (self.cases, None)
-            self.scorer = [Scorer(c, one, one.topology, self.grid, self.hs[0], ref) for c in cases]
         wholes = [None] * len(local) if held is None else [m[:3] for m in held]
         return [
             self.scorer[k % len(self.scorer)].errors(t, xk, *(w if w is not None else [None] * 3))

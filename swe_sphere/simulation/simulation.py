@@ -211,8 +211,8 @@ class Simulation:
         if initial_diagnostics is not None:
             mapping_argument("initial_diagnostics", initial_diagnostics)
         t0 = time.perf_counter()
-        self._compile = [0.0]
-        self.activities: dict = {}  # name -> activity (``activities``): the user's; ``run`` adds its own
+        # the seconds compiling; name -> activity (``activities``): the user's, ``run`` adds its own
+        self._compile, self.activities = [0.0], {}
         self.backend, self.device, self.progress = backend, backend.device, progress
         # single-threaded BLAS, as in ``run``: the ∇⁴'s power iteration (``config.parts.check_hyperviscosity``)
         # takes 40 norms, and OpenBLAS's threads spinning on a busy machine made them 0.3 s of CPU
@@ -395,8 +395,7 @@ class Simulation:
             return run_steps(self.core, observer, d.describe, until_step, until_day)
 
         # the run's own activities (the log after the user's), a single run's solver counters read with the check
-        every = self.scene.log_every_steps
-        one = d.members is None
+        every, one = self.scene.log_every_steps, d.members is None
         more = {"log": log_activity(log, EverySteps(every), files)} if log is not None and every and one else {}
         during = own_activities(self.activities, files, ckp, self.stepper if one else None, **more)
         how = {"progress": self.progress, "lines": progress_lines, "compiling": self._compile}

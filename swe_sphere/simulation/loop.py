@@ -152,20 +152,6 @@ def outcome(stop: Stop, run, output, ckp: Checkpointer, result=None):
     raise err
 
 
-def check_run_files(activities: dict, root: bool, inputs, files: RunFiles, ckp: Checkpointer, overwrite: bool) -> None:
-    """A run's files checked before any is opened: ValueError for a user's activity in
-    ``activities`` under a name the run gives its own (``run_file``, ``checkpointer``, ``log``); on rank 0 (``root``)
-    ``OutputError`` for a file of the run that is one of ``inputs`` (``check_distinct``: the
-    scene file, a mesh, a start) or a restart file that exists and not ``overwrite``."""
-    taken = sorted(set(activities) & {"run_file", "checkpointer", "log"})  # the names ``run`` gives its own
-    if taken:
-        raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
-    if root:
-        check_distinct([ckp.path, *(path for path, _, _ in files.streams)], inputs)  # the run file and its streams
-        if ckp.path is not None:
-            check_target(ckp.path, overwrite)
-
-
 @contextlib.contextmanager
 def own_activities(activities: dict, files: RunFiles, ckp: Checkpointer, deferred=None, **more):
     """A run's own activities in ``activities`` (a ``Simulation``'s, changed
@@ -190,12 +176,21 @@ def open_files(sim, output, overwrite, restart_every, restart_file, compress, hi
     """The run files and checkpointer of a run of ``sim`` (a ``Simulation``; ``run``'s arguments; paths
     checked, the files created on rank 0), the start's gathered fields, its Courant numbers (a
     single run's) and its members' diagnostics (None for a single run); the seconds compiling
-    the diagnostic kernels added to ``compiling[0]``. ValueError for a user's activity under a
-    name the run gives its own."""
+    the diagnostic kernels added to ``compiling[0]``. Checked before any file is opened:
+    ValueError for a user's activity under a name the run gives its own (``run_file``,
+    ``checkpointer``, ``log``); on rank 0 ``OutputError`` for a file of the run that is one of
+    ``sim.inputs`` (``check_distinct``: the scene file, a mesh, a start) or a restart file that
+    exists and not ``overwrite``."""
     d, paths = sim.members, (output, restart_every, restart_file, overwrite)
     ckp = Checkpointer(sim.run_state, sim.write_checkpoint, d.bcast, sim.root, *paths)
     files = RunFiles(sim.run_state, d, sim.grid, sim.hs, output, on_output)
-    check_run_files(sim.activities, sim.root, sim.inputs, files, ckp, overwrite)
+    taken = sorted(set(sim.activities) & {"run_file", "checkpointer", "log"})  # the names ``run`` gives its own
+    if taken:
+        raise ValueError(f"activities {', '.join(taken)}: a run's own names (choose another)")
+    if sim.root:
+        check_distinct([ckp.path, *(path for path, _, _ in files.streams)], sim.inputs)  # the run file and streams
+        if ckp.path is not None:
+            check_target(ckp.path, overwrite)
     with compile_timer(compiling):  # a continuation's first use of the diagnostic kernels
         start = d.gather_fields(divergence=files.divergence)  # the first output time's, every rank
     name = f"swe_sphere.{type(sim).__name__}.run"

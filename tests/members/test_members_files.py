@@ -434,7 +434,7 @@ def test_a_scene_s_ensemble_table_runs_its_ensemble(capsys, tmp_path):
 
 @pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
 def test_a_run_refuses_what_would_replace_its_inputs_or_its_own_names(tmp_path):
-    """As a run's (``simulation.loop.check_run_files``): an output that is the scene file, even
+    """As a run's (``simulation.loop.open_files``): an output that is the scene file, even
     with ``overwrite``, is refused in one line and the file is left as it was; an activity under a
     run's own name is refused; an argument of another kind is named; nothing is written."""
     scene = write_tc2_scene(tmp_path / "tc2.toml", days=0.5)

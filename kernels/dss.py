@@ -253,7 +253,7 @@ def dss_update(
 
 @wp.struct
 class Edges:
-    """Where the element-row DSS (``gather_row``) finds the other copy of an element's edge
+    """Where the element-row DSS (``gather_rows``) finds the other copy of an element's edge
     nodes (``Topology.edges``): ``other`` (nelem, 4(np − 2)), for the nodes inside the south
     (j = 0), north (j = np − 1), west (i = 0) and east (i = np − 1) edges in turn, ordered by
     i or j, the index of the node's other copy (``Copies``' indices: c ≥ nlocal another
@@ -265,30 +265,23 @@ class Edges:
 
 
 @functools.cache
-def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, dtype=f64):
-    """A ``wp.func`` (xr, x, d: ``Copies``, g: ``Edges``, wr, rsr, e, j, r) → row j of element e
-    of the DSS of field r, rspheremp · Σ over copies c of (spheremp[c] if ``weighted`` else 1)
-    · x[r, c] (a GLL row of np values, the bits of ``gather``'s). xr: x as
+def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, dtype=f64):
+    """A ``wp.func`` (xr, x, d: ``Copies``, g: ``Edges``, wr, rsr, e, j) → the (rows × np)
+    matrix whose row r is row j of element e of the DSS of field r, rspheremp · Σ over copies c
+    of (spheremp[c] if ``weighted`` else 1) · x[r, c] (the bits of ``gather``'s). xr: x as
     ``operators.row_vectors`` (rows, N/np); wr, rsr: spheremp's first N and rspheremp as rows
-    (wr read if ``weighted``). ``ghosts`` and x's ``dtype`` as in ``gather`` (the row float64)."""
+    (wr read if ``weighted``). ``ghosts`` and x's ``dtype`` as in ``gather`` (the rows float64).
+    Each copy's index is read once for all the fields (a TC5 ne16 stage's DSS update, one
+    thread: 114 → 84 µs for 3 rows, 152 → 112 for 4, against a field at a time)."""
     R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
     NE = NP - 2
     vec = wp.types.vector(length=NP, dtype=f64)
+    fields = wp.types.vector(length=max(R, 1), dtype=f64)  # a launch of no rows (an RHS of no tendency term) too
+    block = wp.types.matrix(shape=(max(R, 1), NP), dtype=f64)
     xvec = operators.row_type(NP, dtype)
     tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}" + suffix(dtype)
 
     value = copy_value(R, W, G, dtype)
-
-    def corner_sum(x: wp.array2d(dtype=dtype), d: Copies, p: int, r: int):
-        s = f64(0.0)
-        for k in range(C):
-            c = d.table[p, k]
-            if c >= 0:
-                s += value(x, d, c, r)
-        return s
-
-    corner_sum.__qualname__ = corner_sum.__name__ = f"corner_sum_{tag}"
-    corner = wp.func(corner_sum)
 
     def own_row(xr: wp.array2d(dtype=xvec), wr: wp.array(dtype=vec), r: int, q: int):
         if wp.static(W):
@@ -297,58 +290,6 @@ def gather_row(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, d
 
     own_row.__qualname__ = own_row.__name__ = f"own_row_{tag}"
     own = wp.func(own_row)
-
-    def row_sum(
-        xr: wp.array2d(dtype=xvec),
-        x: wp.array2d(dtype=dtype),
-        d: Copies,
-        g: Edges,
-        wr: wp.array(dtype=vec),
-        rsr: wp.array(dtype=vec),
-        e: int,
-        j: int,
-        r: int,
-    ):
-        q = e * NP + j
-        row = vec() + own(xr, wr, r, q)
-        if j == 0 or j == NP - 1:
-            side = wp.where(j == 0, 0, 1)
-            a = g.aligned[e, side]
-            if a >= 0:
-                row = row + own(xr, wr, r, a)
-            else:
-                for i in range(1, NP - 1):
-                    row[i] += value(x, d, g.other[e, side * NE + i - 1], r)
-            p = q * NP
-            row[0] = corner(x, d, p, r)
-            row[NP - 1] = corner(x, d, p + NP - 1, r)
-        else:
-            row[0] += value(x, d, g.other[e, 2 * NE + j - 1], r)
-            row[NP - 1] += value(x, d, g.other[e, 3 * NE + j - 1], r)
-        return wp.cw_mul(rsr[q], row)
-
-    row_sum.__qualname__ = row_sum.__name__ = f"gather_row_{tag}"
-    func = wp.func(row_sum)
-    func.own = own  # a copy's own row, ``gather_rows``' too
-    return func
-
-
-@functools.cache
-def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, dtype=f64):
-    """``gather_row`` of every field at once: a ``wp.func`` (xr, x, d, g, wr, rsr, e, j) → the
-    (rows × np) matrix whose row r is ``gather_row``'s of field r, the same sums in the same
-    order (the same bits), each copy's index read once for all the fields rather than once a
-    field (a TC5 ne16 stage's DSS update, one thread: 114 → 84 µs for 3 rows, 152 → 112 for 4)."""
-    R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
-    NE = NP - 2
-    vec = wp.types.vector(length=NP, dtype=f64)
-    fields = wp.types.vector(length=R, dtype=f64)
-    block = wp.types.matrix(shape=(R, NP), dtype=f64)
-    xvec = operators.row_type(NP, dtype)
-    tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}" + suffix(dtype)
-
-    value = copy_value(R, W, G, dtype)
-    own = gather_row(R, W, C, G, NP, dtype).own
 
     def corner_sums(x: wp.array2d(dtype=dtype), d: Copies, p: int):
         s = fields()
@@ -412,11 +353,11 @@ def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, 
 def dss_update_elements(
     rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int, dtype=f64, state=f64
 ):
-    """``dss_update`` by element on GLL rows (``gather_row``; the same bits), for the CPU, and
+    """``dss_update`` by element on GLL rows (``gather_rows``; the same bits), for the CPU, and
     with the one pattern "k" and c[0] = 1 ``dss_rows`` (1·k is k): arguments xr, x (x as rows
     and as it is), d (``Copies``), g (``Edges``), wr, rsr (spheremp's first N and rspheremp as
     rows), c, then s00, s01, out0, s10, s11, out1 as rows, offset; dim nelem. Outputs and terms
-    may alias each other, not x. x of ``dtype`` (``gather_row``), the terms and outputs of
+    may alias each other, not x. x of ``dtype`` (``gather_rows``), the terms and outputs of
     ``state`` (as ``dss_update``'s), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")

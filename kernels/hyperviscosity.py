@@ -61,7 +61,7 @@ from typing import Any
 
 import warp as wp
 
-from .dss import Copies, Edges, gather, gather_row
+from .dss import Copies, Edges, gather, gather_rows
 from .operators import CPU_FAST, row_type, suffix, times
 
 f64 = wp.float64
@@ -262,7 +262,7 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
 
 @functools.cache
 def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", dtype=f64):
-    """``dss_apply`` by element on GLL rows (``dss.gather_row``, the node gather's bits), for
+    """``dss_apply`` by element on GLL rows (``dss.gather_rows``, the node gather's bits), for
     the CPU (``Topology.by_element``): arguments Lr, L (L as rows and as it is), d
     (``dss.Copies``), g (``dss.Edges``), wr, rsr (spheremp's first N and rspheremp as rows),
     coef, f (``frame_type`` of rows), out, src, prev as rows, mu, nu, offset; dim nelem.
@@ -270,7 +270,7 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
     NP = int(np_)
     vec = row_type(NP)
     RowFrame = frame_type(row_type(NP, dtype))
-    row_dss = gather_row(4, False, copies, ghosts, NP, dtype)
+    rows_dss = gather_rows(4, False, copies, ghosts, NP, dtype)
     applied = _applied(mode)
 
     def dss_apply(
@@ -291,12 +291,7 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
     ):
         e = wp.tid() + offset
         for j in range(NP):
-            y = wp.matrix_from_rows(
-                row_dss(Lr, L, d, g, wr, rsr, e, j, 0),
-                row_dss(Lr, L, d, g, wr, rsr, e, j, 1),
-                row_dss(Lr, L, d, g, wr, rsr, e, j, 2),
-                row_dss(Lr, L, d, g, wr, rsr, e, j, 3),
-            )
+            y = rows_dss(Lr, L, d, g, wr, rsr, e, j)
             applied(y, f.east, f.north, coef, out, src, prev, mu, nu, e * NP + j)
 
     dss_apply.__qualname__ = (

@@ -9,7 +9,7 @@ from typing import Any, NamedTuple
 
 import warp as wp
 
-from .dss import Copies, Edges, gather, gather_row
+from .dss import Copies, Edges, gather, gather_rows
 from .hyperviscosity import add_divergent, frame_type, scale_first, shift_second
 from .operators import CPU_FAST, across_as_along, row_derivatives, row_type, suffix, times
 
@@ -24,7 +24,7 @@ class _ElementParts(NamedTuple):
     ``field`` (src, hs, f, r, q) → row q of field r, ``laplacians`` (src, hs, f, metric, dvv, L,
     e) the four weak Laplacians of element e into L's rows, ``pointwise`` (src, hs, delta, c, f,
     metric, dvv, L, e) their pointwise part in place, ``one_element`` the two, and ``row_dss``
-    (``dss.gather_row``, the second pass's) and ``sum_copies`` (``dss.gather``), their sums
+    (``dss.gather_rows``, the second pass's) and ``sum_copies`` (``dss.gather``), their sums
     float64."""
 
     vec: Any
@@ -206,7 +206,7 @@ def _element_parts(second: bool, divergent: bool, np_: int, copies: int, ghosts:
     RowFrame = frame_type(vec)
     source = _source(S, NP, dtype)
     sum_copies = gather(4, False, max(1, int(copies)), ghosts, dtype)
-    row_dss = gather_row(4, False, max(1, int(copies)), ghosts, NP, dtype)
+    row_dss = gather_rows(4, False, max(1, int(copies)), ghosts, NP, dtype)
     field = _row_field(S, NP, dtype)
     laplacians, pointwise = _row_laplacians(S, NP, dtype), _row_pointwise(S, DIV, NP, dtype)
 
@@ -248,7 +248,7 @@ def laplacian_element(
     dvv (``operators.dvv_matrix``), L (4, ·) output (aliasing neither x nor Y), block (np²),
     offset (in elements); the first pass reads neither x, d, Y nor block. Dim nelem.
     With ``rows`` (the second pass only) a ``Topology.by_element`` kernel instead: the DSS by
-    element on GLL rows (``dss.gather_row``, the same bits) written into src, Y's rows;
+    element on GLL rows (``dss.gather_rows``, the same bits) written into src, Y's rows;
     arguments xr, x, d, g (``dss.Edges``), wr, rsr, then src … L as above, offset.
     ``laplacian_across`` is the same with several elements a vector (np ≥ 5, the same bits).
     ``dtype``: the ∇⁴'s float type (``ShallowWater``'s precision), of x, Y, c, f, metric, dvv
@@ -273,7 +273,7 @@ def laplacian_element(
     RowFrame = frame_type(vec)
     DIV = bool(divergent) and not S
 
-    if ROWS:  # the first DSS by element on GLL rows (``dss.gather_row``), written into src: Y's rows
+    if ROWS:  # the first DSS by element on GLL rows (``dss.gather_rows``), written into src: Y's rows
 
         def kernel(
             xr: wp.array2d(dtype=vec),
@@ -294,8 +294,9 @@ def laplacian_element(
         ):
             e = wp.tid() + offset
             for j in range(NP):
+                y = row_dss(xr, x, d, g, wr, rsr, e, j)
                 for r in range(4):
-                    src[r, e * NP + j] = vec(row_dss(xr, x, d, g, wr, rsr, e, j, r))
+                    src[r, e * NP + j] = vec(y[r])
             one_element(src, hs, delta, c, f, metric, dvv, L, e)
 
     else:
@@ -497,8 +498,9 @@ def laplacian_across(
             b = wp.tid() + offset
             for e in range(b * W, b * W + W):  # Y₁ = the first DSS at the block's elements, as ``laplacian_element``
                 for j in range(NP):
+                    y = row_dss(xr, x, d, g, wr, rsr, e, j)
                     for r in range(4):
-                        src[r, e * NP + j] = vec(row_dss(xr, x, d, g, wr, rsr, e, j, r))
+                        src[r, e * NP + j] = vec(y[r])
             block(src, hs, f, dvv, L, G, X, fx, fy, b)
             for e in range(b * W, b * W + W):  # not unrolled
                 pointwise(src, hs, delta, c, f, metric, dvv, L, e)

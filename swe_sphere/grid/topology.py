@@ -254,7 +254,7 @@ class Topology(RankReductions):
 
     def by_element(self, x: wp.array2d, kernel, args, lanes: int = 1, per_part=None, rest=None) -> list:
         """Launches for a kernel that sums the DSS of x (rows, N) by element on GLL rows
-        itself (``kernels.dss.gather_row``; where ``edges`` is not None: the CPU), the form of
+        itself (``kernels.dss.gather_rows``; where ``edges`` is not None: the CPU), the form of
         ``gathering`` there: ``kernel(rows, copies, ghosts, np)`` builds it; it takes (xr, x,
         ``dss_copies``, ``edges``, wr, rsr, *args, offset), xr x's rows, wr and rsr spheremp's
         first N and rspheremp as rows (``args`` as the kernel reads them: its arrays of nodes as

@@ -41,7 +41,7 @@ def scene_stepper(scene: Scene, model: ShallowWater):
     day (not yet ``prepare``d); ``SceneError`` first for a stepper that cannot step the scene's
     precision (``refuse_precision``: a ``Scene`` changed by ``dataclasses.replace`` too) and a
     ν the ∇⁴ cannot step (``check_hyperviscosity``)."""
-    refuse_precision(scene.precision, scene.stepper)
+    refuse_precision(scene.precision, scene.stepper, scene.stepper_options)
     check_hyperviscosity(model, scene)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     stepper.t0 = scene.start_day * DAY

@@ -337,16 +337,19 @@ def resolve_stepper_days(table: dict, stepper=None, days=None) -> tuple[str, flo
 PRECISIONS = ("float64", "float32", "float32_state")
 
 
-def resolve_precision(table: dict, stepper: str, precision=None, controlled: bool = False) -> str:
+def resolve_precision(
+    table: dict, stepper: str, precision=None, controlled: bool = False, options: dict | None = None
+) -> str:
     """``Scene.precision`` of the [numerics] table and ``load_scene``'s ``precision`` (default
-    "float64") for ``stepper``. Raises ``SceneError`` naming the key: a value not of
-    ``PRECISIONS``; "float32" with a stepper that refuses it (``Described.float32_refusal``);
-    "float32_state" with one that refuses it (``Described.float32_state_refusal``) or with step
-    control (``controlled``: its estimate is read in float64)."""
+    "float64") for ``stepper`` with its ``options`` (its scene table). Raises ``SceneError`` naming
+    the key: a value not of ``PRECISIONS``; "float32" with a stepper that refuses it
+    (``Described.float32_refusal``); "float32_state" with one that refuses it
+    (``Described.float32_state_refusal``) or with step control (``controlled``: its estimate is
+    read in float64)."""
     value = table.get("precision", "float64") if precision is None else precision
     if value not in PRECISIONS:
         raise SceneError(f"numerics.precision must be one of {', '.join(PRECISIONS)} (got {got(value)})")
-    refuse_precision(value, stepper)
+    refuse_precision(value, stepper, options)
     if value == "float32_state" and controlled:
         raise SceneError(
             'numerics.precision = "float32_state" with step control: its error estimate is read in float64; '
@@ -355,11 +358,22 @@ def resolve_precision(table: dict, stepper: str, precision=None, controlled: boo
     return value
 
 
-def refuse_precision(precision: str, stepper: str) -> None:
-    """Refuse (``SceneError``, one line) a ``precision`` that ``stepper`` cannot step in: float32
-    with a stepper whose ``float32_refusal`` says why (its Jacobian-vector products difference the
-    RHS); a scene resolved (``resolve_precision``) and one branched (``checkpoint.branch``)."""
-    described = STEPPERS[stepper]
+def stepper_class(stepper: str, options: dict | None = None) -> type:
+    """The class that steps ``stepper`` with ``options`` (its scene table; None: the defaults),
+    whose refusals are the run's (``Described.picked``: ``tableau``'s engine by its table).
+    Raises ``SceneError`` naming ``stepper.key`` for options the stepper refuses."""
+    try:
+        return STEPPERS[stepper].picked({} if options is None else options)
+    except ValueError as err:
+        raise SceneError(f"{stepper}.{err}") from None
+
+
+def refuse_precision(precision: str, stepper: str, options: dict | None = None) -> None:
+    """Refuse (``SceneError``, one line) a ``precision`` that ``stepper`` with ``options`` cannot
+    step in (``stepper_class``'s refusals): float32 with a stepper whose ``float32_refusal`` says
+    why (its Jacobian-vector products difference the RHS); a scene resolved
+    (``resolve_precision``) and one branched (``checkpoint.branch``)."""
+    described = stepper_class(stepper, options)
     why = described.float32_refusal if precision != "float64" else None
     if why is not None:
         raise SceneError(f'numerics.precision = "{precision}" with stepper {stepper}: {why}; it runs in float64 only')
@@ -371,7 +385,7 @@ def refuse_precision(precision: str, stepper: str) -> None:
 
 
 def resolve_tracers(
-    table: dict, case: ResolvedCase, terms: tuple, stepper: str, controlled: bool, precision: str
+    table: dict, case: ResolvedCase, terms: tuple, stepper: str, controlled: bool, precision: str, options: dict
 ) -> tuple:
     """``Scene.tracers`` of the [tracers] table: ((name, initial), ...), ``names`` the tracers'
     run-file names and ``initial`` their initial fields, one each: a bundled field's name
@@ -380,7 +394,8 @@ def resolve_tracers(
     key): names that are not distinct identifiers or that are a run file's own field or
     coordinate, an unknown field (without a file), lists of other lengths, a case whose h is not a depth (TC1's is itself a tracer, zero
     off its bell: q = hq / h has no value there), a scene without the continuity term (the tracers ride it),
-    or a stepper, step control or precision that does not carry them (``Stepper.tracers_refusal``)."""
+    or a stepper (with its ``options``: ``stepper_class``), step control or precision that does not
+    carry them (``Stepper.tracers_refusal``)."""
     if not table:
         return ()
     names, initial = table.get("names"), table.get("initial")
@@ -401,7 +416,7 @@ def resolve_tracers(
         raise SceneError(f"[tracers] needs a fluid depth: case {case.name}'s h is itself a tracer (q = hq / h)")
     if "continuity" not in terms:
         raise SceneError("[tracers] needs the continuity term: the tracers ride the depth's mass flux")
-    why = STEPPERS[stepper].tracers_refusal
+    why = stepper_class(stepper, options).tracers_refusal
     if why is None and controlled:
         why = "its step control weighs u, v and h alone"
     if why is None and precision != "float64":

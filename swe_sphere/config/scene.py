@@ -337,7 +337,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         precision=t.precision,
         compensated=bool(s.get("numerics", {}).get("compensated", True)),
         mass_fixer=bool(s.get("numerics", {}).get("mass_fixer", True)),
-        tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision),
+        tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision, options),
         tracer_file=resolve_tracer_file(s.get("tracers", {}), path),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),
         tracer_hyperviscosity=resolve_tracer_hyperviscosity(s.get("tracers", {}), t.terms),
@@ -383,7 +383,7 @@ def _tables(s: dict, path: Path, given: dict, mesh, file_grid, file_radius, rest
     every, log_every = resolve_output_interval(output)
     stepper, days = resolve_stepper_days(time, given["stepper"], given["days"])
     controlled = is_controlled(time)
-    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"], controlled)
+    precision = resolve_precision(s.get("numerics", {}), stepper, given["precision"], controlled, s.get(stepper, {}))
     restart = restart_every if is_number(restart_every) and restart_every > 0 and not controlled else None
     times = Times(days, every, _stream_intervals(output), restart)
     np_factor = resolve_dt_np(time, scene_grid.np, grid.np)

@@ -62,6 +62,15 @@ class Described:
         return None if why is None else f"{key} was removed: {why}"
 
     @classmethod
+    def picked(cls, options) -> type:
+        """The class that steps a run with ``options`` (the stepper's table, a dict or its
+        ``Options``), whose refusals (``float32_refusal``, ``float32_state_refusal``,
+        ``tracers_refusal``) are the run's: the stepper itself, unless its options pick its
+        engine (``tableau``: the explicit or the IMEX one by its table). Raises ValueError for
+        options ``make_options`` refuses."""
+        return cls
+
+    @classmethod
     def make_options(cls, **options):
         """The stepper's options from keyword values (defaults for the rest).
         Raises ValueError naming an unknown option or an invalid value."""

@@ -527,10 +527,16 @@ class Tableau(Stepper):
     removed_options: dict = {}
 
     def __new__(cls, model=None, dt=None, options=None):
-        if cls is Tableau:  # the kind of table picks the engine
-            table = parse(options if isinstance(options, TableauOptions) else TableauOptions())
-            cls = TableauARK if table.imex else TableauRK
-        return super().__new__(cls)
+        return super().__new__(cls.picked(TableauOptions() if options is None else options))
+
+    @classmethod
+    def picked(cls, options) -> type:
+        """The engine the kind of table picks: ``TableauRK`` for an explicit table, ``TableauARK``
+        for an IMEX pair (``options``: a dict of ``[tableau]`` or ``TableauOptions``)."""
+        if cls is not Tableau:
+            return cls
+        table = parse(options if isinstance(options, TableauOptions) else cls.make_options(**options))
+        return TableauARK if table.imex else TableauRK
 
     @classmethod
     def label(cls, options: dict) -> str:

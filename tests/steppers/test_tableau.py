@@ -22,10 +22,10 @@ import warp as wp
 import xarray as xr
 from test_imex import tableau as ars
 
-from swe_sphere.config.scene import load_scene, scene_from_dict
+from swe_sphere.config.scene import SceneError, load_scene, scene_from_dict
 from swe_sphere.core.constants import DAY
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.steppers.butcher import TableauOptions, conditions, stage_form
+from swe_sphere.steppers.butcher import TableauOptions, built_in_table, conditions, constant_keeping, stage_form
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
 from swe_sphere.steppers.tables import EXPLICIT
 
@@ -53,13 +53,15 @@ BUILT_IN = {
 
 
 # the Shu–Osher forms the hand-written steppers recorded before they became tables: per
-# stage (c, the RHS's argument, updates (out, ((a, src), ...))), src "k" F times aΔt
+# stage (c, the RHS's argument, updates (out, ((a, src), ...))), src "k" F times aΔt; a
+# combination's weights summing to 1 exactly in float64 (``butcher.constant_keeping``: 1/3 as
+# 1 − fl(2/3), whose sum with fl(2/3) is 1, where fl(1/3) + fl(2/3) = 1 − 2⁻⁵⁴)
 Q = Fraction  # a fraction of Δt
 SHU_OSHER = {
     "ssprk3": (
         (0.0, "x", (("s1", ((1.0, "x"), (Q(1), "k"))),)),
         (1.0, "s1", (("s2", ((0.75, "x"), (0.25, "s1"), (Q(1, 4), "k"))),)),
-        (0.5, "s2", (("x", ((1.0 / 3.0, "x"), (2.0 / 3.0, "s2"), (Q(2, 3), "k"))),)),
+        (0.5, "s2", (("x", ((1.0 - 2.0 / 3.0, "x"), (2.0 / 3.0, "s2"), (Q(2, 3), "k"))),)),
     ),
     "rk4": (
         (0.0, "x", (("s", ((1.0, "x"), (Q(1, 2), "k"))), ("acc", ((1.0, "x"), (Q(1, 6), "k"))))),
@@ -169,8 +171,12 @@ def test_stage_form_of_random_tables_forms_every_stage():
         b = [Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) for _ in range(s)]
         buffers, stages = stage_form(A, b, [sum(row) for row in A])
         held = {"x": np.eye(s + 1)[0]}
+        size = {"x": 1.0}  # Σ |a|·size of what a buffer was summed from: the scale of its roundings
+        part = {"x": Fraction(1)}  # each buffer's multiple of x(n), exactly, from the float weights
         for j, (_, arg, updates) in enumerate(stages):
-            np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=1e-14, err_msg=f"{trial} {j}")
+            atol = roundoff.bound(4, size[arg])  # a weight's rounding, the others' moved onto one (once each), sums
+            np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=atol, err_msg=f"{trial} {j}")
+            assert part[arg] == 1  # x(n)'s part exactly: the float weights keep a constant
             for out, terms in updates:
                 assert (
                     len(terms) <= 3
@@ -178,8 +184,40 @@ def test_stage_form_of_random_tables_forms_every_stage():
                     and sum(src != "k" for _, src in terms) <= 2
                 )
                 held[out] = sum(float(a) * (np.eye(s + 1)[j + 1] if src == "k" else held[src]) for a, src in terms)
-        np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=1e-14, err_msg=str(trial))
+                size[out] = sum(abs(float(a)) * (1.0 if src == "k" else size[src]) for a, src in terms)
+                part[out] = sum(Fraction(a) * part[src] for a, src in terms if src != "k")
+        atol = roundoff.bound(4, size["x"])
+        np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=atol, err_msg=str(trial))
+        assert part["x"] == 1
         assert set(held) <= {"x", *buffers}
+
+
+@pytest.mark.parametrize("name", [k for k in EXPLICIT])
+def test_built_in_stage_forms_keep_a_constant_state_exactly(name):
+    """Every built-in explicit table's recorded combinations, their float weights replayed in
+    exact arithmetic: each stage's input and x(n+1) hold x(n) with weight exactly 1 (the
+    estimate exactly 0), so a constant state with F = 0 stays the same number, not
+    (1 − 2⁻⁵⁴) of it a step (fl(1/3) + fl(2/3) rounded alone: TC5's mass drifted so)."""
+    t = built_in_table(name)
+    d = t.estimate
+    _, stages = stage_form(t.A_E, t.b_E, t.c, None if d is None else d[0])
+    part = {"x": Fraction(1)}  # each buffer's multiple of x(n), exactly, from the float weights
+    for _, arg, updates in stages:
+        assert part[arg] == 1
+        for out, terms in updates:
+            part[out] = sum(Fraction(a) * part[src] for a, src in terms if src != "k")
+    assert part["x"] == 1 and part.get("e", 0) == 0
+
+
+def test_constant_keeping_moves_the_smallest_weight_that_can_take_the_remainder():
+    """fl(1/3) + fl(2/3) misses 1 by 2⁻⁵⁴: 1/3 takes 1 − fl(2/3), a float 1 ulp above fl(1/3);
+    weights whose floats already sum exactly (kgu35's −1/4, 5/4) stay as rounded; scales (the
+    sources' multiples of x(n)) weigh the sum."""
+    assert Fraction(1, 3) + Fraction(2, 3) == 1 and Fraction(1 / 3) + Fraction(2 / 3) != 1
+    assert constant_keeping([Fraction(1, 3), Fraction(2, 3)], [1, 1]) == [1.0 - 2.0 / 3.0, 2.0 / 3.0]
+    assert constant_keeping([Fraction(-1, 4), Fraction(5, 4)], [1, 1]) == [-0.25, 1.25]
+    weights = constant_keeping([Fraction(1, 3), Fraction(1, 3)], [Fraction(1), Fraction(2)])
+    assert sum(Fraction(w) * s for w, s in zip(weights, (1, 2))) == 1
 
 
 # -- the named steppers' bits ------------------------------------------------------
@@ -190,7 +228,11 @@ def test_stage_form_of_random_tables_forms_every_stage():
 RK4_TWO_REGISTERS = (
     (0.0, "x", (("s1", ((1.0, "x"), (Q(1, 2), "k"))),)),
     (0.5, "s1", (("s2", ((1.0, "x"), (Q(1, 2), "k"))),)),
-    (0.5, "s2", (("s1", ((1.0 / 3.0, "s1"), (2.0 / 3.0, "s2"), (Q(1, 3), "k"))), ("s2", ((1.0, "x"), (Q(1), "k"))))),
+    (
+        0.5,
+        "s2",
+        (("s1", ((1.0 - 2.0 / 3.0, "s1"), (2.0 / 3.0, "s2"), (Q(1, 3), "k"))), ("s2", ((1.0, "x"), (Q(1), "k")))),
+    ),
     (1.0, "s2", (("x", ((1.0, "s1"), (Q(1, 6), "k"))),)),
 )
 
@@ -527,3 +569,37 @@ def test_a_table_warns_above_its_courant_limit_and_heuns_second_order_one_always
     assert fast.stepper.courant_limit == pytest.approx(1.73 / math.sqrt(8) * math.sqrt(3), rel=1e-9)
     assert "above tableau heun3's stability limit of about 1.06" in fast.stability_warning()
     assert make_sim(short("tableau", HEUN3, dt=3600.0)).stability_warning() is None
+
+
+# -- what a table carries -----------------------------------------------------------------
+
+TRACERS = {"names": ["one", "dye"], "initial": ["constant", "gaussian_hills"]}
+
+
+@pytest.mark.parametrize("precision, tracers", [("float64", TRACERS), ("float32_state", None)])
+def test_an_explicit_table_carries_what_its_engine_carries(precision, tracers):
+    """``tableau``'s refusals are those of the engine its table picks (``Described.picked``, as
+    ``Tableau.__new__`` picks it), not the registered class's: ssprk3's table in the scene carries
+    tracers and the float32 state as ``ssprk3`` does, to its bits (Galewsky ne2, 3 steps)."""
+    tables = {} if tracers is None else {"tracers": tracers}
+    options = {"name": "ssprk3", **BUILT_IN["ssprk3"]}
+    runs = []
+    for stepper, table in (("tableau", {"tableau": options}), ("ssprk3", {})):
+        scene = load_scene("galewsky", ne=2, np_=4, stepper=stepper, precision=precision, **tables, **table)
+        assert scene.precision == precision and len(scene.tracers) == (0 if tracers is None else 2)
+        runs.append(final_state(scene, 3))
+    (sim, x, _), (_, ref, _) = runs
+    assert isinstance(sim.stepper, TableauRK) and x.shape[0] == (3 if tracers is None else 5)
+    np.testing.assert_array_equal(x, ref)
+
+
+@pytest.mark.parametrize("precision, tracers", [("float64", TRACERS), ("float32_state", None)])
+def test_an_imex_pair_refuses_tracers_and_the_float32_state_in_one_line(precision, tracers):
+    """An IMEX pair's engine (``TableauARK``, as ``imex``) carries neither: refused in one line
+    naming the stepper."""
+    tables = {} if tracers is None else {"tracers": tracers}
+    with pytest.raises(SceneError) as err:
+        load_scene("galewsky", ne=2, np_=4, stepper="tableau", precision=precision, tableau=ars343_pair(), **tables)
+    line = str(err.value)
+    assert "\n" not in line
+    assert ("[tracers] with stepper tableau" if tracers else '"float32_state" with stepper tableau') in line

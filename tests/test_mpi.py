@@ -230,9 +230,12 @@ BRANCH = ["--stepper", "rk4", "--days", "0.5", "--ne", "2", "--no-progress"]  # 
 ENSEMBLE = ["run", "galewsky", "--ne", "2", "--np", "4", "--dt", "900", "--days", "0.5", "--members", "3"]
 ENSEMBLE += ["--vary", "case.hhat=60,120,180", "--restart-every", "0.25"]
 ENSEMBLE += ["-s", 'output.streams=[{name="q", every_days=0.125, fields=["h"]}]']  # rank 0 writes it, as the run file
+# passive tracers: each member's own rows of mass hq, split by member as u, v and h (issue 125)
+MEMBER_TRACERS = ["-s", 'tracers.names=["one", "marker"]', "-s", 'tracers.initial=["constant", "latitude"]']
 ENSEMBLES = {  # its layouts: shared, and in turn (each member its own model: semi-implicit, g per member)
-    "shared": ["--layout", "shared"],
+    "shared": ["--layout", "shared", *MEMBER_TRACERS],
     "in-turn": ["--stepper", "semi_implicit", "--vary", "planet.gravity=9.8,9.7,9.6"],
+    "in-turn-tracers": ["--layout", "in_turn", *MEMBER_TRACERS],
 }
 
 
@@ -732,7 +735,8 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(over_ranks, layout):
     """``run --members 3`` over 2 ranks (members 0, 1 on rank 0, member 2 on rank 1): the run and
     restart files of one process, bit for bit; its restart file continued on 3 ranks (one member
     a rank) as on one. In the same launches, and in turn (each member its own model: a
-    semi-implicit stepper, g per member; the stepper states gathered under each member's name)."""
+    semi-implicit stepper, g per member; the stepper states gathered under each member's name);
+    with tracers, each member's masses hq split with it (shared, and in turn)."""
     tmp_path, said = over_ranks
     assert main([*ENSEMBLE, *ENSEMBLES[layout], "--output", str(tmp_path / "one.nc")]) == 0
     assert "over 2 MPI ranks (2 on rank 0)" in said[2][0]
@@ -747,7 +751,9 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(over_ranks, layout):
     with xr.open_dataset(tmp_path / "one.q.nc", decode_times=False) as a, xr.open_dataset(tmp_path / "two.q.nc") as b:
         assert a.sizes["time"] == 5 and np.array_equal(a.h.values, b.h.values)
     with xr.open_dataset(tmp_path / "one.restart.nc") as a, xr.open_dataset(tmp_path / "two.restart.nc") as b:
-        assert all(np.array_equal(a[k].values, b[k].values) for k in ("u", "v", "h"))
+        masses = [k for k in ("one_mass", "marker_mass") if k in a]  # the tracers' hq, where the members carry them
+        assert len(masses) == (2 if MEMBER_TRACERS[1] in ENSEMBLES[layout] else 0)
+        assert all(np.array_equal(a[k].values, b[k].values) for k in ("u", "v", "h", *masses))
     more = ["run", "--continue", str(tmp_path / "two.restart.nc"), "--days", "0.75"]
     assert main([*more, "--output", str(tmp_path / "c1.nc")]) == 0
     with (
@@ -756,3 +762,4 @@ def test_an_ensemble_s_members_over_ranks_keep_their_bits(over_ranks, layout):
     ):
         # the restart day is the first file's last time: not written again
         assert list(a.time.values) == [0.75] and np.array_equal(a.h.values, b.h.values)
+        assert all(np.array_equal(a[k].values, b[k].values) for k in ("one", "marker") if k in a)

@@ -531,11 +531,11 @@ def branched(s: Scene, record: dict, stepper: str | None = None, dt: float | Non
     dt <= 0, or a run from the branch day to ``days`` or an output interval that is not whole
     steps of dt."""
     stepper = resolve_stepper_days({"stepper": s.stepper}, stepper)[0]  # s's, or another known one
-    refuse_precision(s.precision, stepper)
+    opts = s.stepper_options if stepper == s.stepper else {}
+    refuse_precision(s.precision, stepper, opts)
     record = {**record, "stepper": s.stepper, "dt": s.dt}
     # the notes on how the scene's dt was chosen are stale once dt is given
     notes = s.notes if dt is None else tuple(n for n in s.notes if not n.startswith(DT_NOTES))
-    opts = s.stepper_options if stepper == s.stepper else {}
     scene = dataclasses.replace(s, stepper=stepper, stepper_options=opts, branch=record, notes=notes)
     days = s.days if days is None else days
     if dt is None:  # the restart file's Δt, its scene's rule's

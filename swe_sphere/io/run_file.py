@@ -379,7 +379,7 @@ class RunWriter:
         for name in (*series, *(("h_spread_rms",) if self.members is not None and "h" in self.fields else ())):
             ds.createVariable(name, "f8", ("time",)).setncatts(series_attrs(name))
         for name in self.member_series:
-            ds.createVariable(name, "f8", ("time", "member")).setncatts(SERIES_ATTRS[name])
+            ds.createVariable(name, "f8", ("time", "member")).setncatts(series_attrs(name))
         self.n = 0
 
     def append(self, day: float, u, v, h, series: dict, vorticity=None, divergence=None, masses=None) -> None:

@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 
+from ..cases.tracers import with_tracers
 from ..core.arguments import array_argument, band_argument, got, integer_argument, number_argument
 from ..core.errors import ArgumentError, SceneError
 from ..grid.cubed_sphere import CubedSphere
@@ -86,7 +87,8 @@ class MemberFile:
     """Members that start from an ensemble's run file (``Simulation.run`` with ``members``, ``swe-sphere run
     --members``): member k from the file's member k, its u, v, h at model day ``day`` (None:
     the file's last time) on the grid's unique nodes, as they were written (a run file that
-    was not compressed gives the states' bits). ``path`` a str or os.PathLike."""
+    was not compressed gives the states' bits); the scene's tracers start from its [tracers]
+    fields (``initial_states``), not the file's q. ``path`` a str or os.PathLike."""
 
     path: object
     day: float | None = None
@@ -171,7 +173,7 @@ def asked(scene, members, start, given=None, required: bool = False) -> tuple[in
     ``start`` (``Simulation``'s ``initial``), else the [ensemble]'s ``Perturbation`` where its
     amplitude is above 0, a perturbation's band checked within the grid's degrees
     (``check_band``); ``given`` (``Simulation``'s ``start``) checked as an array (3 + K, n) (K the
-    scene's tracers). ``SceneError`` for members with tracers, a function or a ``given`` start;
+    scene's tracers). ``SceneError`` for members with a function or a ``given`` start;
     ``ArgumentError`` for a single run's ``start`` that is not a function, or given with ``given``."""
     table = scene.ensemble  # the scene's [ensemble] table, or None
     if members is None and table is None:
@@ -190,8 +192,6 @@ def asked(scene, members, start, given=None, required: bool = False) -> tuple[in
     start = Perturbation(table["perturbation"], table["seed"], table.get("degrees")) if perturbed else start
     if isinstance(start, Perturbation):  # its band within the grid's degrees, named as it was given
         check_band(start.degrees, scene, "ensemble.degrees" if perturbed else "initial: perturbation degrees")
-    if scene.tracers:
-        raise SceneError("[tracers] in a run of members: the members' states carry u, v and h alone")
     if callable(start) or given is not None:
         raise SceneError(
             "initial: an [ensemble]'s members start from its perturbation, or an array, a Perturbation, a "
@@ -200,11 +200,15 @@ def asked(scene, members, start, given=None, required: bool = False) -> tuple[in
     return members, start, None
 
 
-def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -> np.ndarray:
-    """(N, 3, n) float64 the members' starts from ``initial`` (``Simulation``'s with ``members``: None, an array, a
-    ``Perturbation``, a ``MemberFile`` or ``Variants``, whose members' ``cases`` these are) on
-    ``grid`` from ``case``'s state, checked (``checked_states``). ``ArgumentError`` naming
-    ``initial`` for another kind or shape, or Variants whose surface heights differ."""
+def initial_states(initial, grid: CubedSphere, case, members: int, cases=None, scene=None) -> np.ndarray:
+    """(N, 3 + K, n) float64 the members' starts from ``initial`` (``Simulation``'s with ``members``: None, an
+    array, a ``Perturbation``, a ``MemberFile`` or ``Variants``, whose members' ``cases`` these are) on
+    ``grid`` from ``case``'s state, checked (``checked_states``): each member's u, v, h with a row of
+    mass h·q for each of the K tracers of ``scene`` (its [tracers]; None: none), q its
+    ``tracer_fields()`` for every member (``cases.tracers.with_tracers``, as a single run's start),
+    or an array's own rows hq where it gives them ((N, 3 + K, n): a restart file's). ``ArgumentError``
+    naming ``initial`` for another kind or shape, or Variants whose surface heights differ."""
+    nq = 0 if scene is None else len(scene.tracers)
     if initial is None or isinstance(initial, Perturbation):
         state = np.stack(case.initial(grid.lat, grid.lon))
         states = np.repeat(state[None], members, axis=0) if initial is None else initial.apply(grid, state, members)
@@ -217,13 +221,18 @@ def initial_states(initial, grid: CubedSphere, case, members: int, cases=None) -
                 raise ArgumentError(f"variants: member {k}'s surface height hs differs (the members share hs)")
         states = np.stack([np.stack(member.initial(grid.lat, grid.lon)) for member in cases])
     elif isinstance(initial, np.ndarray | list | tuple):
-        states = array_argument("initial", initial, (members, 3, grid.nnodes), "m s⁻¹ and m")
+        rows = 3 + nq if nq and np.shape(initial)[1:2] == (3 + nq,) else 3  # with the tracers' masses, or without
+        states = array_argument("initial", initial, (members, rows, grid.nnodes), "m s⁻¹ and m")
     else:
         raise ArgumentError(
             "initial must be None, an array (members, 3, nnodes), a Perturbation, a MemberFile or Variants "
             f"(got {got(initial)})"
         )
-    return checked_states(states, case, "initial", range(members))
+    states = checked_states(states, case, "initial", range(members))
+    if states.shape[1] == 3 + nq:
+        return states
+    fields = scene.tracer_fields()
+    return np.stack([with_tracers(state, fields, grid.lat, grid.lon) for state in states])
 
 
 class MembersAlike(UserWarning):

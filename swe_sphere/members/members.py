@@ -103,7 +103,7 @@ class Members:
         scenes, self.cases = start.scenes(scene, members) if isinstance(start, initial.Variants) else (None, None)
         # the variants' values, as a restart file keeps them (JSON)
         self.variants = None if self.cases is None else {k: np.asarray(v).tolist() for k, v in start.values.items()}
-        starts = initial.initial_states(start, grid, case, members, self.cases)
+        starts = initial.initial_states(start, grid, case, members, self.cases, scene)
         self.initial_states = initial.described(start)
         # measured on the starts made, whatever made them (a perturbation lost in h's rounding, a file, --vary)
         self.alike = initial.stay_alike(starts, start)
@@ -269,9 +269,17 @@ class Members:
 
     def invariants_of(self, held) -> list[dict[str, float]] | None:
         """Each of this rank's members' invariants (``model.diagnostics.invariants`` on the one grid:
-        the bits of the single run's) from their rows ``held`` (``WholeFields.held``; None: None)."""
-        each = zip(held, self.hs, self.fcor, self.g) if held is not None else None  # a member's rows, hs, f and g
-        return None if each is None else [invariants(self.grid, *r[:3], hs, r[3], f, g) for r, hs, f, g in each]
+        the bits of the single run's) and its tracers' masses ``<name>_mass`` (∫hq dA, m³, as
+        ``figures``') from their rows ``held`` (``WholeFields.held``, the masses last; None: None)."""
+        if held is None:
+            return None
+        names = [f"{name}_mass" for name, _ in self.scene.tracers]
+        each = zip(held, self.hs, self.fcor, self.g)  # a member's rows, hs, f and g
+        return [
+            invariants(self.grid, *r[:3], hs, r[3], f, g)
+            | {k: float(self.grid.integrate(hq)) for k, hq in zip(names, r[len(r) - len(names) :], strict=True)}
+            for r, hs, f, g in each
+        ]
 
     def invariants(self) -> list[dict[str, float]]:
         """Each member's mass (m³), total energy (m⁵ s⁻²) and potential enstrophy (m s⁻²)

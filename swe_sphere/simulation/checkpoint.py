@@ -223,7 +223,8 @@ def from_checkpoint(
     if members:
         # the file's states, or its Variants (the members' own scenes), its layout and blow-up policy
         variants, kept = ck.initial.get("variants"), ck.initial
-        states = ck.x.reshape(3, ck.members, -1).transpose(1, 0, 2) if variants is None else Variants(variants)
+        # u, v, h and the tracers' masses hq, a member's
+        states = ck.x.reshape(len(ck.x), ck.members, -1).transpose(1, 0, 2) if variants is None else Variants(variants)
         both = {"layout": kept.get("layout", "shared"), "blow_up": kept.get("blow_up", "stop"), "threads": threads}
         sim = cls(scene, device=device, members=ck.members, initial=states, per_element=per_element, **kw, **both)
         sim.restore(ck)

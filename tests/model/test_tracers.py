@@ -123,13 +123,6 @@ def test_a_restart_carries_the_tracers_bitwise(tmp_path):
     assert np.array_equal(rest.x.numpy(), whole.x.numpy())
 
 
-def test_an_ensemble_refuses_tracers_in_one_line():
-    """Members' states carry u, v and h alone: a run of members with [tracers] is refused."""
-    scene = load_scene("galewsky", ne=2, np_=4, tracers=TRACERS)
-    with pytest.raises(SceneError, match="run of members"):
-        Simulation(scene, "cpu", members=2, progress=False)
-
-
 def test_the_limiter_keeps_each_elements_mass_and_meets_the_bounds():
     """Guba et al. 2014's limiter on ne2 np4: the bounds of a smooth tracer taken, its masses then
     pushed out of them (a ripple of ±30 % of hq that keeps each element's mass), limited: every q
@@ -216,10 +209,12 @@ def test_a_bad_limiter_is_refused_in_one_line():
 
 
 def test_a_gradient_refuses_tracers_in_one_line():
-    """The adjoint's tapes and costs are of u, v, h: a gradient of a scene with [tracers] is refused."""
+    """The adjoint's tapes and costs are of u, v, h: a gradient of a scene with [tracers] is refused
+    in one line naming what to drop (issue 125 item 4)."""
     scene = load_scene("tc5_mountain", ne=2, np_=4, dt=1800.0, stepper="rk4", tracers=TRACERS)
-    with pytest.raises(ArgumentError, match=r"\[tracers\]"):
+    with pytest.raises(ArgumentError, match=r"\[tracers\]") as err:
         gradient(scene, 2, lambda x: float(np.sum(x[2] ** 2)))
+    assert "\n" not in str(err.value) and "drop the tracers" in str(err.value)
 
 
 def test_plot_and_remap_take_the_tracers(tmp_path):

@@ -20,6 +20,7 @@ import numpy as np
 from ..cases.scoring import Scorer
 from ..cases.tracers import with_tracers
 from ..config.parts import partition, scene_stepper
+from ..config.resolve import stepper_class
 from ..config.scene import Scene
 from ..core.arguments import got
 from ..core.backend import Backend
@@ -31,7 +32,6 @@ from ..integrator.control import StepControl
 from ..integrator.core import Unit
 from ..io.initial_state import from_function
 from ..model.shallow_water import ShallowWater
-from ..steppers import STEPPERS
 from ..steppers.initialization import digital_filter
 from .grid import MemberGrid
 from .initial import ON_ROOT, Variants
@@ -53,7 +53,7 @@ def layout(scene, initial, asked: str | None, device, own: bool = False) -> str:
         raise ArgumentError(f"layout must be None, 'shared' or 'in_turn' (got {got(asked)})")
     causes = [
         ("blow_up 'drop'", own),
-        (f"stepper {scene.stepper}", not STEPPERS[scene.stepper].explicit),
+        (f"stepper {scene.stepper}", not stepper_class(scene.stepper, scene.stepper_options).explicit),
         ("the tensor ∇⁴", scene.hypervis_scaling is not None),
         ("their own g or ν", isinstance(initial, Variants) and initial.own_model),
     ]

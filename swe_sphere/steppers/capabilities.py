@@ -66,8 +66,8 @@ class Described:
         """The class that steps a run with ``options`` (the stepper's table, a dict or its
         ``Options``), whose refusals (``float32_refusal``, ``float32_state_refusal``,
         ``tracers_refusal``) are the run's: the stepper itself, unless its options pick its
-        engine (``tableau``: the explicit or the IMEX one by its table). Raises ValueError for
-        options ``make_options`` refuses."""
+        engine (``tableau``: the explicit or the IMEX one by its table, ValueError for a table
+        it refuses)."""
         return cls
 
     @classmethod

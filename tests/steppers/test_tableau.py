@@ -24,6 +24,8 @@ from test_imex import tableau as ars
 
 from swe_sphere.config.scene import SceneError, load_scene, scene_from_dict
 from swe_sphere.core.constants import DAY
+from swe_sphere.core.errors import ArgumentError
+from swe_sphere.ensemble import Perturbation
 from swe_sphere.steppers import STEPPERS
 from swe_sphere.steppers.butcher import TableauOptions, built_in_table, conditions, constant_keeping, stage_form
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
@@ -603,3 +605,15 @@ def test_an_imex_pair_refuses_tracers_and_the_float32_state_in_one_line(precisio
     line = str(err.value)
     assert "\n" not in line
     assert ("[tracers] with stepper tableau" if tracers else '"float32_state" with stepper tableau') in line
+
+
+def test_an_explicit_tables_members_may_share_launches():
+    """The members' layout asks the engine too (``units.layout``): an explicit table's members step in
+    the same launches as ``ssprk3``'s may; an IMEX pair's need a model each, refused in one line."""
+    options = {"name": "ssprk3", **BUILT_IN["ssprk3"]}
+    scene = load_scene("galewsky", ne=2, np_=4, stepper="tableau", tableau=options)
+    members = helpers.members_run(scene, 2, Perturbation(1.0, seed=1), device="cpu", layout="shared")
+    assert members.members.layout == "shared"
+    pair = load_scene("galewsky", ne=2, np_=4, stepper="tableau", tableau=ars343_pair())
+    with pytest.raises(ArgumentError, match=r"need a model each \(stepper tableau\)"):
+        helpers.members_run(pair, 2, Perturbation(1.0, seed=1), device="cpu", layout="shared")

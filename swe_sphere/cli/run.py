@@ -347,7 +347,7 @@ def _ensemble_header(args, sim, output: Path, device) -> None:
     scene, ens = sim.scene, sim.members
     gravity_waves = "pressure_gradient" in scene.terms
     states = [x for k, x in enumerate(sim.states()) if k not in sim.dropped]  # a continued run's dropped: NaN
-    courant = [courant_numbers(ens.grid, *x, scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
+    courant = [courant_numbers(ens.grid, *x[:3], scene.dt, scene.planet["gravity"], gravity_waves) for x in states]
     print(f"scene       {scene.name}: {scene.description}")
     print(f"grid        {scene.grid_text}: {scene.nelem} elements, {ens.grid.nunique} unique nodes")
     print(terms_line(scene))

@@ -2,7 +2,7 @@
 docstring: three passes): ``laplacian_element`` on the element's GLL rows (packed SIMD), the
 second pass gathering the first DSS itself; at np ≥ 5 ``laplacian_across``, the same with W
 elements a vector in its weak Laplacians (the same bits), ``weak_laplacian_across`` its sweeps
-and ``across_layout`` its metric's layout."""
+and ``operators.across_layout`` its metric's layout."""
 
 import functools
 from typing import Any, NamedTuple
@@ -453,7 +453,7 @@ def laplacian_across(
     Arguments: (second: xr, x, d, g, wr, rsr, as ``Topology.by_element`` gives them), src, hs,
     delta, c, f, metric, dvv, L as ``laplacian_element``'s;
     G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
-    (W b + w) np² + n] (``across_layout``); X, fx, fy (np²) vectors of W, a thread's private
+    (W b + w) np² + n] (``operators.across_layout``); X, fx, fy (np²) vectors of W, a thread's private
     scratch (``parallel.record``'s ``per_part``); offset (in blocks). Dim ⌊nelem/W⌋.
     HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric). ``dtype`` as
     ``laplacian_element``'s (of G, X, fx, fy too)."""
@@ -531,12 +531,3 @@ def laplacian_across(
         "laplacian_across__" + ("second" if S else "first__divergent" if DIV else "first") + suffix(dtype)
     )
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
-
-
-def across_layout(a, lanes: int, np_: int):
-    """The across layout of ``laplacian_across``'s G from a (rows, N) numpy array of element-local
-    values: (rows, ⌊nelem/W⌋ np², W), [k, b np² + n, w] = a[k, (W b + w) np² + n]."""
-    rows, nn = a.shape[0], int(np_) ** 2
-    nb = a.shape[1] // nn // int(lanes)
-    t = a[:, : nb * lanes * nn].reshape(rows, nb, lanes, nn)
-    return t.transpose(0, 1, 3, 2).reshape(rows, nb * nn, lanes).copy()

@@ -12,6 +12,7 @@ import functools
 import os
 from typing import Any
 
+import numpy as np
 import warp as wp
 
 f64 = wp.float64
@@ -359,6 +360,20 @@ def across_as_along(np_: int) -> bool:
     layout's; the compiler's or Warp's doing, not found;
     tests/model/test_operators.py::test_hyperviscosity_rates_at_high_np)."""
     return int(np_) > 4
+
+
+def across_layout(a, lanes: int, np_: int, pad: bool = False):
+    """The across layout (the element index innermost: ``hyperviscosity_element.laplacian_across``,
+    ``tendencies.tendency_across``) of a (rows, N) numpy array of element-local values:
+    (rows, nb np², W), [k, b np² + n, w] = a[k, (W b + w) np² + n], over the nb = ⌊nelem/W⌋
+    whole blocks of W = ``lanes`` elements, or with ``pad`` the ⌈nelem/W⌉ blocks, the last one's
+    lanes past the last element holding that element's values."""
+    rows, nn, W = a.shape[0], int(np_) ** 2, int(lanes)
+    nelem = a.shape[1] // nn
+    nb = -(-nelem // W) if pad else nelem // W
+    e = np.minimum(np.arange(nb * W), nelem - 1)
+    t = a.reshape(rows, nelem, nn)[:, e].reshape(rows, nb, W, nn)
+    return t.transpose(0, 1, 3, 2).reshape(rows, nb * nn, W).copy()
 
 
 def dvv_matrix(dvv, dtype=f64) -> object:

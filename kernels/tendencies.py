@@ -81,18 +81,22 @@ def absolute_vorticity(terms: tuple):
 
 @functools.cache
 def finish(terms: tuple, weighted: bool = False):
-    """The pointwise end of the tendency, shared by both layouts: from the
+    """The pointwise end of the tendency, shared by the three layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
-    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, p], times mass[p] (the element
-    mass spheremp) if ``weighted``. Generic: p is a node and the values scalars (per-node
-    kernel), or p is a row and the values rows (``operators.row_vectors``, the element kernel),
-    of the tendency's float type; the state x float64, its wind read in that type."""
+    cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, s], times mass[p] (the element
+    mass spheremp) if ``weighted``; p indexes the geometry (Dinv, metdet, fcor, forcing, mass),
+    s the state x and tend (p itself but in ``tendency_across``, whose x and tend are a thread's
+    scratch). Generic: p is a node and the values scalars (per-node kernel), a row and the
+    values rows (``operators.row_vectors``, the element kernel), or a node of a block of elements
+    and the values vectors of them (``tendency_across``), of the tendency's float type; the
+    state x float64 or of that type, its wind read in that type."""
     CONT, ADV, COR, PG, TOPO = term_flags(terms)
     W = bool(weighted)
     GRAD = ADV or PG
 
     def finish_terms(
         p: int,
+        s: int,
         div: Any,
         bx: Any,
         by: Any,
@@ -117,8 +121,8 @@ def finish(terms: tuple, weighted: bool = False):
             dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
         if wp.static(ADV or COR):  # −(ζ + f) k×v
             rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
-            du += times(rot, type(rot)(x[1, p]))  # the state's wind in the tendency's float type
-            dv -= times(rot, type(rot)(x[0, p]))
+            du += times(rot, type(rot)(x[1, s]))  # the state's wind in the tendency's float type
+            dv -= times(rot, type(rot)(x[0, s]))
         if wp.static(TOPO):
             du += forcing[0, p]
             dv += forcing[1, p]
@@ -127,9 +131,9 @@ def finish(terms: tuple, weighted: bool = False):
             du = times(w, du)
             dv = times(w, dv)
             dh = times(w, dh)
-        tend[0, p] = du
-        tend[1, p] = dv
-        tend[2, p] = dh
+        tend[0, s] = du
+        tend[1, s] = dv
+        tend[2, s] = dh
 
     finish_terms.__qualname__ = finish_terms.__name__ = "finish__" + "__".join(terms) + ("__mass" if W else "")
     return wp.func(finish_terms)
@@ -253,7 +257,7 @@ def tendency(
             if wp.static(ADV):
                 cx += dvv[i, m] * (D[1, q] * uq + D[3, q] * vq)
                 cy += dvv[j, m] * (D[0, r] * ur + D[2, r] * vr)
-        wp.static(finish(terms, weighted))(p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
+        wp.static(finish(terms, weighted))(p, p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
         for k in range(wp.static(K)):  # each tracer's mass hq by the continuity's arithmetic on h
             dq = dtype(0.0)
             for m in range(n):
@@ -378,7 +382,7 @@ def tendency_element(
                     cy = along(dvv[j], v1)
                 else:
                     cy = across(v1, j, dvv)
-            wp.static(finish(terms, weighted))(q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
+            wp.static(finish(terms, weighted))(q, q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
         for k in range(wp.static(K)):  # each tracer's mass flux on h's contravariant wind, then its divergence, as h's
             for j in range(NP):
                 q = base + j
@@ -399,6 +403,151 @@ def tendency_element(
         + "__".join(terms)
         + ("__mass" if weighted else "")
         + tracer_suffix(K)
+        + ("__departed" if DEPARTED else "")
+        + suffix(dtype)
+    )
+    return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
+
+
+@functools.cache
+def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, dtype=f64, departed: bool = False):
+    """The tendency kernel for ``terms`` with W = ``lanes`` elements a vector (the element index
+    innermost, as the ∇⁴'s ``hyperviscosity_element.laplacian_across``): a thread a block of W
+    consecutive elements e = W·(tid + offset) + w, each node's value a ``wp.types.vector(W)`` of
+    theirs, so that at np 4 a float32 vector of 16 fills a 512-bit register, where a GLL row of
+    ``tendency_element`` fills a quarter. The state and the tendency stay in the node layout,
+    viewed as an element's np² values a row (``operators.row_vectors(a, np²)``): each element's
+    rows go lane by lane into the thread's scratch S (9, np²) of W-vectors and come back from it
+    lane by lane. The geometry is in the across layout: [k, b np² + n][w] the value at node n of
+    element W b + w (``operators.across_layout`` with its last block padded). Each sum is
+    ``tendency_element``'s, its products commuted, in its order (HOMME's ``sweq_mod``
+    arithmetic): float64 gives the rows' bits (tests/model/test_tendency_lanes.py); in float32
+    clang contracts other products into FMAs, so the two agree to float32's round-off.
+
+    Arguments: x (3, N/np²) the state, D, Dinv (4, ·), metdet, fcor, forcing (2, ·) topographic
+    −g∇hs, mass (·) spheremp in the across layout (W-vectors of ``dtype``), g, h0 (``tendency``'s,
+    a row of np² values of x's type), dvv (``operators.dvv_matrix``), S (a thread's scratch,
+    ``parallel.record``'s ``per_part``), tend (3, N/np²) output, nelem (the last block's lanes
+    past it read its last element again and are not written), offset (in blocks). Dim
+    ⌈nelem/W⌉. ``weighted``, ``dtype`` and ``departed`` as ``tendency``'s; no tracers (a model with
+    tracers runs ``tendency_element``)."""
+    CONT, ADV, _, PG, _ = term_flags(terms)
+    NP, W = int(np_), int(lanes)
+    NN = NP * NP
+    DEPARTED = _departed(departed, dtype, 0)
+    SHIFT = dtype is not f64 and not DEPARTED  # the mixed float32: h − H₀ formed in float64
+    xtype = dtype if DEPARTED else f64
+    vw = wp.types.vector(length=W, dtype=dtype)
+    node = row_type(NN, dtype)  # an element's np² values in the tendency's type
+    state = row_type(NN, xtype)  # and in the state's (x and tend viewed so: one load, one store an element's row)
+    mat = row_derivatives(NP, dtype)[1]
+    end = finish(terms, weighted)
+
+    def kernel(
+        x: wp.array2d(dtype=state),
+        D: wp.array2d(dtype=vw),
+        Dinv: wp.array2d(dtype=vw),
+        metdet: wp.array(dtype=vw),
+        fcor: wp.array(dtype=vw),
+        forcing: wp.array2d(dtype=vw),
+        mass: wp.array(dtype=vw),
+        g: dtype,
+        h0: state,
+        dvv: mat,
+        S: wp.array2d(dtype=vw),
+        tend: wp.array2d(dtype=node),
+        nelem: int,
+        offset: int,
+    ):
+        b = wp.tid() + offset
+        bn = b * NN
+        e0 = b * W
+        # S's rows: u, v, h (the depth, or a departed state's h − H₀), g's height (the mixed
+        # float32's h − H₀), then the mass flux metdet h c¹, c², the Bernoulli function and the
+        # covariant wind v₁, v₂; finish writes du, dv, dh over u, v, h at its node, which no
+        # other node reads after the fluxes are formed
+        for w in range(W):  # the state in, lane by lane (unrolled: each lane's stores at fixed offsets)
+            p = wp.min(e0 + w, nelem - 1)  # the last block's lanes past it read its last element again
+            xu = node(x[0, p])
+            xv = node(x[1, p])
+            xh = node(x[2, p])
+            xg = node()
+            if wp.static(SHIFT and PG):
+                xg = node(x[2, p] - h0)  # g's height: h − H₀ in float64, then rounded
+            for n in range(NN):
+                S[0, n][w] = xu[n]
+                S[1, n][w] = xv[n]
+                S[2, n][w] = xh[n]
+                if wp.static(SHIFT and PG):
+                    S[3, n][w] = xg[n]
+        for q in range(bn, bn + NN):  # the fluxes, a node of the block at a time (not unrolled)
+            n = q - bn
+            u = S[0, n]
+            v = S[1, n]
+            h = S[2, n]
+            if wp.static(CONT):
+                depth = h  # h0 added back to a departed state's h − h0
+                if wp.static(DEPARTED):
+                    depth = h + vw(h0[0])
+                Jh = times(metdet[q], depth)
+                S[4, n] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+                S[5, n] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+            E = vw()
+            if wp.static(ADV):
+                E = dtype(0.5) * (times(u, u) + times(v, v))
+                S[7, n] = times(D[0, q], u) + times(D[2, q], v)
+                S[8, n] = times(D[1, q], u) + times(D[3, q], v)
+            if wp.static(PG):
+                if wp.static(SHIFT):
+                    E = E + g * S[3, n]
+                else:
+                    E = E + g * h
+            S[6, n] = E
+        for q in range(bn, bn + NN):  # the derivatives along ξ and η and the pointwise end
+            n = q - bn
+            j = n / NP
+            i = n - j * NP
+            div = vw()
+            bx = vw()
+            by = vw()
+            cx = vw()
+            cy = vw()
+            if wp.static(CONT):
+                a = vw()
+                c = vw()
+                for m in range(NP):
+                    a += dvv[i, m] * S[4, j * NP + m]
+                for m in range(NP):
+                    c += dvv[j, m] * S[5, m * NP + i]
+                div = a + c
+            if wp.static(ADV or PG):
+                for m in range(NP):
+                    bx += dvv[i, m] * S[6, j * NP + m]
+                for m in range(NP):
+                    by += dvv[j, m] * S[6, m * NP + i]
+            if wp.static(ADV):
+                for m in range(NP):
+                    cx += dvv[i, m] * S[8, j * NP + m]
+                for m in range(NP):
+                    cy += dvv[j, m] * S[7, m * NP + i]
+            end(q, n, div, bx, by, cx, cy, S, Dinv, metdet, fcor, forcing, mass, S)
+        for w in range(W):  # the tendency out, lane by lane (unrolled), the last block's lanes past nelem left
+            if e0 + w < nelem:
+                du = node()
+                dv = node()
+                dh = node()
+                for n in range(NN):
+                    du[n] = S[0, n][w]
+                    dv[n] = S[1, n][w]
+                    dh[n] = S[2, n][w]
+                tend[0, e0 + w] = du
+                tend[1, e0 + w] = dv
+                tend[2, e0 + w] = dh
+
+    kernel.__qualname__ = kernel.__name__ = (
+        f"tendency_across__np{NP}_w{W}__"
+        + "__".join(terms)
+        + ("__mass" if weighted else "")
         + ("__departed" if DEPARTED else "")
         + suffix(dtype)
     )

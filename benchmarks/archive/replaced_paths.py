@@ -232,7 +232,22 @@ def tendency_across(NP: int, W: int):
                     cx += dvv[i, m] * s[4, base + j * NP + m]
                 for m in range(NP):
                     cy += dvv[j, m] * s[3, base + m * NP + i]
-                end(base + j * NP + i, d1 + d2, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
+                end(
+                    base + j * NP + i,
+                    base + j * NP + i,
+                    d1 + d2,
+                    bx,
+                    by,
+                    cx,
+                    cy,
+                    x,
+                    Dinv,
+                    metdet,
+                    fcor,
+                    forcing,
+                    mass,
+                    tend,
+                )
 
     tendency.__name__ = tendency.__qualname__ = f"tendency_across_np{NP}_w{W}"
     return wp.kernel(tendency, enable_backward=False, module="unique", module_options=CPU_FAST)

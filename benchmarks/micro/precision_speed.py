@@ -20,7 +20,13 @@ with ``time.process_time``, which another process's load does not inflate (one t
 
 ``--precisions float64 float32 float32_state`` adds the float32 state (issue 128: a step's
 state and stages in float32 too), its RHS on the float32 state as a stage reads it
-(``rhs_call``), each timed against float64 in the same rounds.
+(``rhs_call``), each timed against float64 in the same rounds. A precision with ``:rows``
+(``float32:rows``, ``float32_state:rows``) is that precision's model with its tendency on GLL
+rows (``ShallowWater``'s ``lanes=0``), the layout before its vector lanes (``model.lanes``: W
+elements a vector at np 4), timed in the same rounds::
+
+    SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py --grids tc5_ne120_np4 \
+        --precisions float64 float32:rows float32 float32_state:rows float32_state
 """
 
 from __future__ import annotations
@@ -101,13 +107,16 @@ def rhs_call(model, x):
 
 
 def build(name: str, ne: int, np_: int, precision: str):
-    """(model, stepper, state) of scene ``name`` at ne, np in ``precision``, one thread, CPU."""
+    """(model, stepper, state) of scene ``name`` at ne, np in ``precision`` (``:rows``: its tendency
+    on rows, ``lanes=0``), one thread, CPU."""
     from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
+    precision, _, layout = precision.partition(":")
     scene = load_scene(name, ne=ne, np_=np_)
     case = scene.make_case()
     grid = CubedSphere(ne, np_, radius=case.planet.a)
-    model = ShallowWater.from_scene(scene, grid, case, device="cpu", threads=1, precision=precision)
+    lanes = 0 if layout == "rows" else None
+    model = ShallowWater.from_scene(scene, grid, case, device="cpu", threads=1, precision=precision, lanes=lanes)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
     x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
     return model, stepper, x
@@ -154,7 +163,7 @@ def main(argv=None):
         "--precisions",
         nargs="+",
         default=list(PRECISIONS),
-        choices=("float64", "float32", "float32_state"),
+        choices=("float64", "float32", "float32_state", "float32:rows", "float32_state:rows"),
         help="float64 first, each timed against it (default %(default)s)",
     )
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")
@@ -194,9 +203,9 @@ def main(argv=None):
             print("| " + " | ".join(cells) + " |")
             del built, calls
         for ne in args.peak_ne:
-            peaks = {p: child_peak_rss(ne, p) for p in precisions}
+            peaks = {p: child_peak_rss(ne, p) for p in precisions if ":" not in p}  # the CLI runs the shipped lanes
             figures[f"peak_rss_tc5_ne{ne}"] = peaks
-            print(f"peak RSS, TC5 ne{ne} np4 run: " + ", ".join(f"{p} {peaks[p]:.0f} MiB" for p in precisions))
+            print(f"peak RSS, TC5 ne{ne} np4 run: " + ", ".join(f"{p} {v:.0f} MiB" for p, v in peaks.items()))
 
 
 if __name__ == "__main__":

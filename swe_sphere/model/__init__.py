@@ -4,7 +4,8 @@
 GravityWaveOperator`` (the linear gravity-wave operator L and its mean-depth rule) and its inverse
 ``helmholtz.HelmholtzSolver`` (the Helmholtz solve; its CG in ``helmholtz_cg``, its start in
 ``guess_history``), the model's ``implicit_terms`` and ``implicit_inverse``; ``hyperviscosity.Hyperviscosity``
-(HOMME's ``biharmonic_wk`` ∇⁴, its substeps), ``bad_nodes.BadNodes`` (the non-finite or dry-node
+(HOMME's ``biharmonic_wk`` ∇⁴, its substeps), ``lanes.TendencyLanes`` (the tendency's vector
+lanes on the CPU at np 4), ``bad_nodes.BadNodes`` (the non-finite or dry-node
 check), ``launches`` (the launch recorder they all launch through, and ``Update``, a linear
 combination written by an operator's DSS), ``transposes`` (the operators' transposes the
 gradients of a run reverse steps with), ``diagnostics`` (invariants, Courant numbers,
@@ -21,6 +22,7 @@ __all__ = [
     "helmholtz",
     "helmholtz_cg",
     "hyperviscosity",
+    "lanes",
     "launches",
     "shallow_water",
     "transposes",

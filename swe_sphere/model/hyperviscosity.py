@@ -158,12 +158,12 @@ class Hyperviscosity:
         return w if ok else 0
 
     def _across_metric(self, metric: wp.array2d) -> wp.array2d:
-        """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.hyperviscosity_element.across_layout``),
+        """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.operators.across_layout``),
         made once for each fixed metric (the constant ∇⁴'s, the tensor's)."""
         key = metric.ptr
         if key not in self._across_metrics:
             m, vw = self.model, wp.types.vector(length=self.lanes, dtype=self.dtype)
-            values = hyperviscosity_element.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
+            values = operators.across_layout(metric.numpy()[:3], self.lanes, m.grid.np)
             self._across_metrics[key] = (wp.array(values, dtype=vw, device=m.device), metric)
         return self._across_metrics[key][0]
 

@@ -69,7 +69,8 @@ class TendencyArrays(NamedTuple):
     ∇(g(h − H₀)) with h − H₀ formed in float64, so that float32 carries h's variation, not its
     mean: SpeedyWeather's scaling of its variables). Under float64 these are the model's own
     arrays (nothing is copied) and H₀ is unread; under float32 copies rounded once from the
-    float64 arrays."""
+    float64 arrays (D, metdet, fcor and forcing None where the tendency's lanes hold their own:
+    ``model.lanes``)."""
 
     dtype: object
     D: wp.array2d
@@ -84,17 +85,35 @@ class TendencyArrays(NamedTuple):
     depth: float
 
     @classmethod
-    def of(cls, dtype, ops, mass: wp.array, forcing: wp.array2d | None, depth: float, rows: int = 3) -> TendencyArrays:
+    def of(
+        cls,
+        dtype,
+        ops,
+        mass: wp.array,
+        forcing: wp.array2d | None,
+        depth: float,
+        rows: int = 3,
+        rows_geometry: bool = True,
+    ) -> TendencyArrays:
         """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass`` and ``forcing``
         (float64) as the tendency reads them in ``dtype``, a new ``tend`` of the state's ``rows``
-        (3 and a row for each tracer), and the reference ``depth`` (m)."""
+        (3 and a row for each tracer), and the reference ``depth`` (m). ``rows_geometry`` False
+        (the tendency's lanes hold their own geometry: ``model.lanes``): under float32 no copies of
+        D, metdet, fcor and forcing (None), which only the tendency's rows read."""
         tend = wp.zeros((rows, ops.N), dtype=dtype, device=ops.D.device)
         if dtype is wp.float64:
             return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
         dvv = np.asarray(ops.grid.rule.dvv)
+        kept = (lambda a: rounded(a, dtype)) if rows_geometry else (lambda a: None)
         return cls(
             dtype,
-            *(rounded(a, dtype) for a in (ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv)),
+            kept(ops.D),
+            rounded(ops.Dinv, dtype),
+            kept(ops.metdet),
+            kept(ops.fcor),
+            rounded(mass, dtype),
+            kept(forcing),
+            rounded(ops.dvv, dtype),
             operators.dvv_matrix(dvv, dtype),
             tend,
             float(depth),

@@ -31,6 +31,7 @@ from .filter import ElementFilter
 from .gravity_wave import GravityWaveOperator
 from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
+from .lanes import TendencyLanes
 from .launches import LaunchRecorder, check_updates
 from .limiter import LIMITERS, TracerLimiter
 from .mass_fixer import MassFixer
@@ -174,6 +175,11 @@ class ShallowWater:
         values before their DSS (``rhs_update``'s ``limit``) and to the tracers' ∇⁴.
     tracer_hyperviscosity : True (default): the tracers take the ∇⁴ (``tracers`` above); False:
         none on them (q = 1 then drifts where the depth is damped; their masses are still kept).
+    lanes : the tendency's vector lanes on the CPU's elements at np 4 (``model.lanes``): W
+        elements a vector, a thread W elements; None (default): the measured choice of the
+        precision's float type (``lanes.LANES``: float32 16, float64 0); 0: its GLL rows, an element
+        a thread. Unread where they do not apply (np ≠ 4, the per-node layout, fewer than W
+        elements, tracers, a part's elements).
 
     Raises
     ------
@@ -182,8 +188,8 @@ class ShallowWater:
         tendency term to add to.
     ArgumentError
         (a ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
-        ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle or
-        ``tracers`` not numbers in range, tracers without the continuity term, a ``device`` that is
+        ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle,
+        ``tracers`` or ``lanes`` not numbers in range, tracers without the continuity term, a ``device`` that is
         not a name, or a ``device`` other than its ``topology``'s (the model's arrays would live
         where its launches do not: an illegal memory access on CUDA).
 
@@ -226,6 +232,7 @@ class ShallowWater:
         tracers=0,
         limiter="none",
         tracer_hyperviscosity=True,
+        lanes=None,
     ):
         if not isinstance(grid, CubedSphere):
             raise ArgumentError(f"grid must be a CubedSphere (got {got(grid)})")
@@ -251,6 +258,8 @@ class ShallowWater:
             )
         terms = _checked_terms(terms, forcing)
         integer_argument("tracers", tracers, low=0)
+        if lanes is not None:
+            integer_argument("lanes", lanes, low=0)
         if tracers and "continuity" not in terms:
             raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
         self.tracers, self.rows = int(tracers), 3 + int(tracers)
@@ -284,10 +293,18 @@ class ShallowWater:
         self.state_dtype, self.compensated = state_dtype(precision), bool(compensated)
         # the float32 state's global mass fixer (None: none)
         self.mass_fixer = MassFixer(self) if mass_fixer and self.state_dtype is not f64 else None
-        # what the tendency kernels read and write, in the precision's float type
+        # the tendency's vector lanes where they pay (``model.lanes``), and what the tendency kernels
+        # read and write, in the precision's float type (no float32 rows of the geometry the lanes hold)
+        self.lanes = TendencyLanes(self, lanes, dtype, per_element)
         depth = 0.0 if depth is None else number_argument("depth", depth, "m")
         self.tendency_arrays = TendencyArrays.of(
-            dtype, self.operators, self.spheremp[:N], self.topo_forcing, depth, self.rows
+            dtype,
+            self.operators,
+            self.spheremp[:N],
+            self.topo_forcing,
+            depth,
+            self.rows,
+            rows_geometry=not self.lanes.applies(self.tracers),
         )
         # the tracers' limiter (a scene's tracers.limiter); None: none
         self.limiter = TracerLimiter(self) if self.tracers and limiter != "none" else None
@@ -379,7 +396,10 @@ class ShallowWater:
         forced = self.forcing is not None and "forcing" in named
         K = self.tracers if "continuity" in terms else 0  # the tracers ride the continuity
         departed = x.dtype is not f64  # a float32 state's h − H₀ (``precision.state_dtype``)
-        if terms:
+        if terms and self.lanes.applies(K):  # float32 at np 4: W elements a vector, a block of them a thread
+            for blocks in element_runs(self.lanes.blocks(runs), 0):
+                launches.append(self.lanes.launch(x, tend, terms, not forced, blocks))
+        elif terms:
             forcing = t.forcing if t.forcing is not None else t.D[0:2]  # read only with topography
             args = [x, t.D, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
             for run in runs:

@@ -241,11 +241,15 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     }
     assert len(float32_terms) == 3  # every term, the continuity alone, and the forced
     for terms, precision in [*((t, "") for t in tendency_terms), *((t, "_float32") for t in float32_terms)]:
-        pattern = "tendency__" + "__".join(terms) + f"(__mass)?(__np4)?{precision}_[0-9a-f]{{8}}"
+        # float32's per-element tendency at np 4 is its lanes' (``model.lanes``: W = 16 elements a vector)
+        lanes = "_across__np4_w16" if precision else ""
+        pattern = f"tendency({lanes})?__" + "__".join(terms) + f"(__mass)?(__np4)?{precision}_[0-9a-f]{{8}}"
         tendency = [n for n in names if re.fullmatch(pattern, n)]
         # per node (compiled for np 4) and per element, mass-weighted (unforced) or not (forced: TC4's)
         both = ([False, True], [False, False, True, True])
-        assert sorted("__np4" in n for n in tendency) in both, (terms, precision, tendency)
+        per_node = [re.search(f"__np4{precision}_[0-9a-f]{{8}}$", n) is not None for n in tendency]
+        assert sorted(per_node) in both, (terms, precision, tendency)
+        assert all(lanes in n for n, node in zip(tendency, per_node) if not node), tendency
     keys = {k.key for k in launched}
     hv = (
         "laplacian_element__first",
@@ -316,9 +320,12 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4" in keys
     assert "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass__np4__q2" in keys
     assert "tendency__continuity__np4__q1" in keys  # the forced, unweighted tendency of the transport tests
-    departed = "tendency__continuity__momentum_advection__coriolis__pressure_gradient__topography__mass"
-    for key in (departed + "__np4__departed_float32", departed + "__departed_float32"):
-        assert key in keys, key  # the float32 state's tendency, per node and per element
+    departed = "continuity__momentum_advection__coriolis__pressure_gradient__topography__mass"
+    for key in (
+        f"tendency__{departed}__np4__departed_float32",
+        f"tendency_across__np4_w16__{departed}__departed_float32",
+    ):
+        assert key in keys, key  # the float32 state's tendency, per node and per element (its lanes at np 4)
     for key in ("to_departure", "add_increment", "from_departure"):
         assert key in keys, key
     assert any(k.key.endswith("__state_float32") for k in launched)  # the float32 stages' combinations

@@ -15,6 +15,7 @@ import warp as wp
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.kernels import hyperviscosity_element as hv_kernels
+from swe_sphere.kernels import operators
 from swe_sphere.model.hyperviscosity import Hyperviscosity
 from swe_sphere.model.shallow_water import ShallowWater
 
@@ -99,9 +100,14 @@ def test_where_the_rows_stay():
 
 
 def test_across_layout():
-    """G[k, b np² + n, w] = a[k, (W b + w) np² + n], the elements past the last block left out."""
+    """G[k, b np² + n, w] = a[k, (W b + w) np² + n], the elements past the last block left out,
+    or with pad in a last block whose lanes past the last element repeat it."""
     np_, lanes, nelem = 5, 4, 9
     a = np.arange(2 * nelem * np_**2, dtype=float).reshape(2, nelem * np_**2)
-    g = hv_kernels.across_layout(a, lanes, np_)
+    g = operators.across_layout(a, lanes, np_)
     assert g.shape == (2, 2 * np_**2, lanes)
     assert g[1, np_**2 + 7, 3] == a[1, (lanes + 3) * np_**2 + 7]
+    padded = operators.across_layout(a, lanes, np_, pad=True)
+    assert padded.shape == (2, 3 * np_**2, lanes)
+    assert np.array_equal(padded[:, : 2 * np_**2], g)
+    assert np.array_equal(padded[0, 2 * np_**2 + 7], np.full(lanes, a[0, 8 * np_**2 + 7]))

@@ -1,0 +1,111 @@
+"""The tendency's vector lanes on the CPU: W elements a vector at np 4 where it pays.
+
+On the per-element layout an element's GLL row at np 4 is 4 values: a float32 row fills a
+quarter of a 512-bit register, a float64 row half. ``TendencyLanes`` runs the tendency with the
+element index innermost instead (``kernels.tendencies.tendency_across``, as the ∇⁴'s
+``laplacian_across`` at np ≥ 5): a thread a block of W elements, each node's value a vector of
+theirs, the geometry held once in that layout, the state and the tendency in the node layout,
+moved lane by lane through a thread's scratch. ``LANES`` says where it runs, per float type,
+from one thread's CPU clock at np 4 (``benchmarks/micro/precision_speed.py`` with
+``float32:rows``, the rows timed beside the lanes): float32's tendency ran 1.2–1.8× faster on
+16 lanes than on rows (TC5 ne30 and ne120); float64's 0.5–0.85× as fast on 8 or 16, so float64
+keeps its rows (and its bits, which the lanes reproduce: tests/model/test_tendency_lanes.py).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ..kernels import operators, tendencies
+
+# W, the elements a vector of the tendency at np 4 per float type; 0: the rows (one element a thread)
+LANES = {wp.float32: 16, wp.float64: 0}
+
+
+class TendencyLanes:
+    """The lanes of ``model``'s tendency (a ``ShallowWater``): the geometry in the across layout
+    (``operators.across_layout``, its last block padded), made on first use from the model's
+    float64 arrays rounded once to the tendency's type (``precision.rounded``'s values), and each
+    CPU thread's scratch (9, np²) of W-vectors.
+
+    ``lanes`` W: ``width`` (None: ``LANES`` of the tendency's float type ``dtype``) on a CPU's
+    per-element layout at np 4 with at least W elements, else 0. Where they run (``applies``),
+    the model keeps no float32 rows of D, metdet, fcor and −g∇hs (``precision.TendencyArrays``):
+    the geometry is 12 rows of N values of the tendency's type against the rows' 14."""
+
+    def __init__(self, model, width: int | None, dtype, per_element: bool):
+        self.model = m = model
+        np_ = m.grid.np
+        w = LANES.get(dtype, 0) if width is None else int(width)
+        # a CPU's threads each have their scratch; on CUDA (per element or not) the lanes are not measured
+        ok = m.backend.host and per_element and np_ == 4 and w > 1 and m.N // np_**2 >= w
+        self.lanes, self.dtype = (w if ok else 0), dtype
+        self._geometry = None
+        if self.lanes:
+            vw = wp.types.vector(length=self.lanes, dtype=dtype)
+            slots = max(1, m.launches.threads)
+            scratch = wp.zeros((slots, 9, np_**2), dtype=vw, device=m.device)
+            self._per_part = {"S": [scratch[i] for i in range(slots)]}
+
+    def applies(self, tracers: int) -> bool:
+        """Whether a tendency with ``tracers`` rows of tracer mass runs in lanes: W > 0, no tracers
+        (their rows ride ``tendencies.tendency_element``, and the dynamics' with them)."""
+        return bool(self.lanes) and not tracers
+
+    def blocks(self, runs) -> list[int]:
+        """The blocks of W elements that hold the element ranges ``runs`` ((start, stop); None: every
+        element), ascending: a part's elements with the others of their blocks, computed and not
+        assembled (``ElementPart``)."""
+        W, nelem = self.lanes, self.model.N // self.model.grid.np**2
+        held = set()
+        for run in runs:
+            start, stop = (0, nelem) if run is None else run
+            held.update(range(start // W, -(-stop // W)))
+        return sorted(held)
+
+    def geometry(self) -> list:
+        """D, Dinv (4, ·), metdet, fcor, −g∇hs (2, ·; a work array's values without topography: unread) and spheremp
+        in the across layout, W-vectors of the tendency's type."""
+        if self._geometry is None:
+            m, W = self.model, self.lanes
+            ops, vw = m.operators, wp.types.vector(length=W, dtype=self.dtype)
+
+            def across(a, rows):
+                values = operators.across_layout(a.numpy().reshape(rows, -1), W, m.grid.np, pad=True)
+                out = wp.array(values, dtype=vw, device=m.device)  # rounded once, as ``precision.rounded``
+                return out if rows > 1 else out[0]
+
+            forcing = m.topo_forcing if m.topo_forcing is not None else ops.vec_work
+            self._geometry = [
+                across(ops.D, 4),
+                across(ops.Dinv, 4),
+                across(ops.metdet, 1),
+                across(ops.fcor, 1),  # as it is now: a shared ensemble's members set theirs after the build
+                across(forcing, 2),
+                across(m.spheremp[: m.N], 1),
+            ]
+        return self._geometry
+
+    def launch(self, x: wp.array2d, tend: wp.array2d, terms: tuple, weighted: bool, blocks: tuple[int, int]):
+        """The recorded launch of the tendency of ``terms`` (``weighted``: times spheremp) of the
+        state ``x`` (3, N; float64, or a float32 state's departure) into ``tend`` (3, N) over the
+        blocks ``blocks`` (start, stop)."""
+        m, t, W = self.model, self.model.tendency_arrays, self.lanes
+        np_ = m.grid.np
+        nn = np_ * np_
+        departed = x.dtype is not wp.float64
+        kernel = tendencies.tendency_across(terms, np_, W, weighted, t.dtype, departed)
+        inputs = [
+            operators.row_vectors(x, nn),
+            *self.geometry(),
+            m.g,
+            operators.row_type(nn, x.dtype)(t.depth),
+            t.dvv_rows,
+            self._per_part["S"][0],
+            operators.row_vectors(tend, nn),
+            m.N // nn,
+        ]
+        start, stop = blocks
+        return m.launches.record(
+            kernel, stop - start, inputs, nodes_per_index=W * nn, per_part=self._per_part, start=start
+        )

@@ -29,7 +29,8 @@ class TendencyLanes:
     CPU thread's scratch (9, np²) of W-vectors.
 
     ``lanes`` W: ``width`` (None: ``LANES`` of the tendency's float type ``dtype``) on a CPU's
-    per-element layout at np 4 with at least W elements, else 0. Where they run (``applies``),
+    per-element layout at np 4 with any element, else 0: a rank's few elements too (one block, its
+    lanes past them padded), so that every rank count has one arithmetic. Where they run (``applies``),
     the model keeps no float32 rows of D, metdet, fcor and −g∇hs (``precision.TendencyArrays``):
     the geometry is 12 rows of N values of the tendency's type against the rows' 14."""
 
@@ -38,7 +39,7 @@ class TendencyLanes:
         np_ = m.grid.np
         w = LANES.get(dtype, 0) if width is None else int(width)
         # a CPU's threads each have their scratch; on CUDA (per element or not) the lanes are not measured
-        ok = m.backend.host and per_element and np_ == 4 and w > 1 and m.N // np_**2 >= w
+        ok = m.backend.host and per_element and np_ == 4 and w > 1 and m.N > 0
         self.lanes, self.dtype = (w if ok else 0), dtype
         self._geometry = None
         if self.lanes:

@@ -178,8 +178,7 @@ class ShallowWater:
     lanes : the tendency's vector lanes on the CPU's elements at np 4 (``model.lanes``): W
         elements a vector, a thread W elements; None (default): the measured choice of the
         precision's float type (``lanes.LANES``: float32 16, float64 0); 0: its GLL rows, an element
-        a thread. Unread where they do not apply (np ≠ 4, the per-node layout, fewer than W
-        elements, tracers, a part's elements).
+        a thread. Unread where they do not apply (np ≠ 4, the per-node layout, tracers).
 
     Raises
     ------

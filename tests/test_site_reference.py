@@ -70,3 +70,13 @@ def test_numpydoc_reads_an_api_entrys_sections_as_written(name):
         # a name, names, or none (a Returns or Raises entry of its type alone)
         misread += [(where, n) for n in names if not re.fullmatch(r"(\*{0,2}\w+(, \*{0,2}\w+)*)?", n.strip())]
     assert misread == []
+
+
+def test_every_test_file_the_pages_cite_exists():
+    """A page that backs a figure with a test names its file (``tests/integrator/test_step_control.py``):
+    each cited path exists, so a test moved to its subject's folder takes its citations along."""
+    root = API_PAGE.parents[2]
+    pages = [*root.glob("docs/**/*.md"), root / "README.md"]
+    cited = {path for page in pages for path in re.findall(r"\btests/[\w/]+\.py\b", page.read_text())}
+    assert "tests/integrator/test_step_control.py" in cited
+    assert sorted(path for path in cited if not (root / path).is_file()) == []

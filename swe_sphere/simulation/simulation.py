@@ -354,8 +354,7 @@ class Simulation:
             Under step control, the model day to land on and stop at (default: the scene's last;
             ``advance``).
         progress_lines : cli.progress.ProgressLines, optional
-            Rank 0's lines of progress every so many wall seconds, where no bar is drawn (any object
-            with ``start(day, end_day)`` and ``tick(step, day)``; the console script's).
+            Rank 0's lines of progress where no bar is drawn (``start(day, end_day)``, ``tick(step, day)``).
 
         Returns
         -------
@@ -509,10 +508,9 @@ class Simulation:
         Returns
         -------
         xarray.Dataset or None
-            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹), vorticity, divergence (s⁻¹) on
-            ``ncol`` (N > 1: on (``member``, ``ncol``), the ``squeeze`` rule) with hs (every member's: members share
-            it, ``members.initial.initial_states`` refuses Variants whose hs differ), area, lat, lon and ``time`` in
-            days (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
+            On the nodes, as a run file holds one output time: h (m), u, v (m s⁻¹), vorticity, divergence (s⁻¹)
+            on ``ncol`` (N > 1: (``member``, ``ncol``), the ``squeeze`` rule), hs (members share it), area, lat,
+            lon and ``time`` in days (``run_file.node_dataset``); or on (lat, lon). None on ranks other than 0.
 
         Raises
         ------

@@ -115,7 +115,6 @@ from .resolve import (
     resolve_ensemble,
     resolve_grid,
     resolve_initialization,
-    resolve_limiter,
     resolve_output_files,
     resolve_output_interval,
     resolve_planet,
@@ -124,15 +123,13 @@ from .resolve import (
     resolve_stepper_days,
     resolve_stepper_options,
     resolve_terms,
-    resolve_tracer_file,
-    resolve_tracer_hyperviscosity,
-    resolve_tracers,
     scene_title,
 )
 from .resolved import Scene, run_end, scene_from_dict, with_days
 from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
 from .state_scene import TEMPLATE, is_state_file, start_overrides
 from .step_rule import DT_NOTES, Times, scene_dt
+from .tracers import resolve_limiter, resolve_tracer_file, resolve_tracer_hyperviscosity, resolve_tracers
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
 __all__ = [

@@ -52,7 +52,7 @@ class Described:
     # likewise); None: it can (``runge_kutta.ExplicitRK``)
     float32_state_refusal: str | None = "its stages and updates are written in float64 only"
     # why the stepper cannot carry passive tracers (a scene's [tracers], refused in one line by
-    # ``config.resolve.resolve_tracers``); None: it can (its stages combine whole states, every row)
+    # ``config.tracers.resolve_tracers``); None: it can (its stages combine whole states, every row)
     tracers_refusal: str | None = "its step is written for u, v and h alone"
 
     @classmethod

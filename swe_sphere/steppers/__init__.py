@@ -27,10 +27,11 @@ from ..model.shallow_water import ShallowWater
 from .base import Stepper, StepStats, option_types
 from .explicit import FBRK32, Leapfrog, LeapfrogTrapezoidal
 from .exponential import Epi2, Epi3
+from .imex_rk import Imex, imex_pair_steppers
 from .implicit import Implicit
 from .local import Lts
 from .multirate import Mri, SplitExplicit
-from .runge_kutta import Imex, Tableau, explicit_steppers, imex_pair_steppers
+from .runge_kutta import Tableau, explicit_steppers
 from .semi_implicit import SemiImplicit
 
 STEPPERS: dict[str, type[Stepper]] = {

@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -570,3 +571,20 @@ def stage_terms(terms, dst, arrays: dict, K, tau: float) -> tuple:
     """The (coefficient, array) terms of one ``stage_form`` update into ``dst``: src "k" as
     (q·tau, K), None as dst itself, a name as that buffer of ``arrays``."""
     return tuple((float(a) * tau, K) if src == "k" else (a, dst if src is None else arrays[src]) for a, src in terms)
+
+
+class _Tables(Mapping):
+    """The built-in tables by key (``butcher.built_in_table``: each checked when first read, not
+    at import)."""
+
+    def __getitem__(self, key: str) -> Table:
+        return built_in_table(key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(BUILT_IN)
+
+    def __len__(self) -> int:
+        return len(BUILT_IN)
+
+
+TABLES = _Tables()

@@ -176,7 +176,7 @@ class ErrorEstimates:
     def follow_tolerance(self, atol: float, rtol: float = 0.0, per_unit_step: bool = False) -> None:
         """Under error control with absolute tolerances ≥ ``atol`` and the relative ``rtol``: an
         iterative solve inside the step tightened to stay below the step's error
-        (``implicit.Implicit``, ``runge_kutta.ImexRK``); ``per_unit_step``: the tolerances are
+        (``implicit.Implicit``, ``imex_rk.ImexRK``); ``per_unit_step``: the tolerances are
         a day's (``time.per_unit_step``: a step's error held to Δt / 1 day of them). Nothing
         here."""
 

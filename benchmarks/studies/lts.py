@@ -74,7 +74,7 @@ from results import DAY, positive, quiet_warp, recorded, section, studies, timed
 from swe_sphere import BlowUp, CubedSphere, Simulation, load_scene  # noqa: E402
 from swe_sphere.grid.levels import element_levels, element_neighbours, element_rates  # noqa: E402
 from swe_sphere.grid.topology import rank_parts  # noqa: E402
-from swe_sphere.model.shallow_water import ElementPart  # noqa: E402
+from swe_sphere.model.parts import ElementPart  # noqa: E402
 from swe_sphere.steppers.local import size_levels  # noqa: E402
 
 from meshes import case_model  # noqa: E402

@@ -43,7 +43,7 @@ import warp as wp
 
 from ..grid.levels import ElementLevels, element_levels, element_rates
 from ..grid.quality import element_sizes
-from ..model.shallow_water import ElementPart
+from ..model.parts import ElementPart
 from .base import Stepper, StepStats, entry, gathered_copy, load_entry
 from .capabilities import GraphCapture
 from .multirate import Mri

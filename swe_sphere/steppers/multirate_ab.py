@@ -111,7 +111,7 @@ def sum_nodes(parts: list, device) -> tuple[list, list]:
 
 class MultirateAB3:
     """The MRAB3 step (the module docstring) of ``model`` with coarse step ``dt`` (s) on the
-    element ``parts`` (one ``ShallowWater.ElementPart`` a level, coarsest first; [None]: one
+    element ``parts`` (one ``model.parts.ElementPart`` a level, coarsest first; [None]: one
     level, the whole grid's ``rhs``). ``inner`` names the start's explicit table
     (``tables.EXPLICIT``); ``comb(out, *terms)`` and ``combine(out, terms)`` are the
     stepper's recorded linear combinations, ``at(c)`` sets the model time to t_n + c Δt.

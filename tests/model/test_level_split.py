@@ -9,7 +9,7 @@ import warp as wp
 
 from swe_sphere.grid.cubed_sphere import CubedSphere
 from swe_sphere.grid.levels import element_levels, element_rates
-from swe_sphere.model.shallow_water import ElementPart
+from swe_sphere.model.parts import ElementPart
 
 import roundoff
 from meshes import case_model, refined_ne4_grid

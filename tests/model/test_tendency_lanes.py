@@ -9,7 +9,8 @@ import warp as wp
 from swe_sphere import load_scene, make_stepper
 from swe_sphere.core.errors import ArgumentError
 from swe_sphere.model import lanes
-from swe_sphere.model.shallow_water import ElementPart, ShallowWater
+from swe_sphere.model.parts import ElementPart
+from swe_sphere.model.shallow_water import ShallowWater
 from tests.helpers import cached_grid
 
 EPS32 = float(np.finfo(np.float32).eps)

@@ -148,23 +148,31 @@ def state_suffix(state) -> str:
 
 
 @functools.cache
-def combination(pattern: str):
-    """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i, summed left to
-    right as ``blas.axpby``/``axpbypcz`` do (the same bits), with the terms
-    named by ``pattern``: "a" the next of the arrays s0, s1 at [r, p], "k" the
-    value k: node values (float64), or GLL rows (``dss_update_elements``: k a row,
-    the arrays row views, lane by lane the same bits); arrays of a float32 state read into
-    float64. One to three terms, at most two "a" and one "k" (e.g. "ak",
-    "aak", "aka", "a", "k")."""
+def combination(pattern: str, state=f64):
+    """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i with the terms named by
+    ``pattern``: "a" the next of the arrays s0, s1 at [r, p], "k" the value k: node values
+    (float64), or GLL rows (``dss_update_elements``: k a row, the arrays row views, lane by lane
+    the same bits). One to three terms, at most two "a" and one "k" (e.g. "ak", "aak", "aka",
+    "a", "k").
+
+    ``state`` float64: summed left to right as ``blas.axpby``/``axpbypcz`` do (the same bits).
+    ``state`` float32 (the float32 state's stages): summed in float32, k and each weight rounded
+    to float32 once, two arrays as (c₀ + c₁)·s1 + (c₀·(s0 − s1) + c_k·k), the weights' sum
+    taken in float64 before it is rounded: where the stage form's weights keep a constant
+    (``butcher.constant_keeping``: RK4's 1/3, 2/3 sum to 1 exactly) the float32 sum does too,
+    s0 = s1 = C giving 1·C + 0 whatever fl₃₂(c₀) is. Rounded alone, fl₃₂(1/3) + fl₃₂(2/3) =
+    1 + 3e-8: RK4 biased each step's state by a quarter of a float32 spacing (TC2 ne4 np4 a day,
+    mass 3.2e-7 off without the fixer)."""
     if not 1 <= len(pattern) <= 3 or set(pattern) - {"a", "k"} or pattern.count("k") > 1 or pattern.count("a") > 2:
         raise ValueError(f"a combination is 1 to 3 terms of at most two arrays 'a' and one 'k' (got {pattern!r})")
+    if state is not f64:
+        return _combination_state(pattern, state)
     P = pattern + "a" * (3 - len(pattern))  # padded: the padding's terms are not compiled
     N = len(pattern)
     K1, K2 = P[1] == "k", P[2] == "k"
     A0, A1 = P[0] == "a", P[:2].count("a")  # term 0 an array; term 1 is s1 (A1 = 2) or s0
 
     def combine(c: wp.vec3d, k: Any, s0: wp.array2d(dtype=Any), s1: wp.array2d(dtype=Any), r: int, p: int):
-        # the arrays' values in k's float64 (a float32 state's widened: the sum in float64, rounded once as stored)
         t = k
         if wp.static(A0):
             t = type(k)(s0[r, p])
@@ -188,6 +196,35 @@ def combination(pattern: str):
     return wp.func(combine)
 
 
+def _combination_state(pattern: str, state):
+    """``combination``'s float32 form (its docstring): the weights at the arrays' and k's places
+    of ``pattern``, the arrays s0 (and s1), a combination of F alone k's multiple."""
+    at = [i for i, t in enumerate(pattern) if t == "a"]
+    IA, IB = (at + [0, 0])[:2]  # the first and second array's weight
+    IK = pattern.find("k")
+    ARRAYS, K = len(at), IK >= 0
+    IK = max(IK, 0)
+
+    def combine_state(c: wp.vec3d, k: Any, s0: wp.array2d(dtype=Any), s1: wp.array2d(dtype=Any), r: int, p: int):
+        a = s0[r, p]
+        kk = type(a)(k)
+        if wp.static(ARRAYS == 0):
+            return state(c[wp.static(IK)]) * kk
+        if wp.static(ARRAYS == 1):
+            v = state(c[wp.static(IA)]) * a
+            if wp.static(K):
+                v = v + state(c[wp.static(IK)]) * kk
+            return v
+        b = s1[r, p]
+        d = state(c[wp.static(IA)]) * (a - b)
+        if wp.static(K):
+            d = d + state(c[wp.static(IK)]) * kk
+        return state(c[wp.static(IA)] + c[wp.static(IB)]) * b + d
+
+    combine_state.__qualname__ = combine_state.__name__ = f"combine_{pattern}" + suffix(state)
+    return wp.func(combine_state)
+
+
 @functools.cache
 def dss_update(
     rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True, dtype=f64, state=f64
@@ -203,13 +240,13 @@ def dss_update(
     s00, s01, out0, s10, s11, out1 (rows, N) (the unused ones any such array),
     block, offset. Outputs and terms may alias each other, not x. Dim N/block
     (as ``dss_rows``). x of ``dtype`` (``gather``); the terms and outputs of ``state``
-    (float32: the float32 state's stages, each combination summed in float64 and rounded once as
-    it is stored; ``precision = "float32_state"``), the rest float64."""
+    (float32: the float32 state's stages, each combination summed in float32, ``combination``'s
+    float32 form; ``precision = "float32_state"``), the rest float64."""
     if not 1 <= len(patterns) <= 2:
         raise ValueError(f"one or two combinations (got {len(patterns)})")
     sum_copies = gather(rows, bool(weighted), copies, ghosts, dtype)
-    first = combination(patterns[0])
-    second = combination(patterns[-1])
+    first = combination(patterns[0], state)
+    second = combination(patterns[-1], state)
     TWO = len(patterns) == 2
 
     def dss_update(
@@ -366,8 +403,8 @@ def dss_update_elements(
     xvec = operators.row_type(NP, dtype)
     svec = operators.row_type(NP, state)
     rows_dss = gather_rows(rows, weighted, copies, ghosts, np_, dtype)
-    first = combination(patterns[0])
-    second = combination(patterns[-1])
+    first = combination(patterns[0], state)
+    second = combination(patterns[-1], state)
     TWO = len(patterns) == 2
 
     def dss_update(

@@ -2,8 +2,9 @@
 
 Nair & Lauritzen (2010)'s nondivergent deformational flow (T = 12 days) carrying cosine
 bells, Gaussian hills, slotted cylinders, the correlated pair and q = 1
-(``deformational_flow.toml`` beside this script), at each ``--ne`` and ``--np`` (4: HOMME's; Δt and
-ν scaled by the scene's rule from ne10 np4's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), or
+(``deformational_flow.toml`` beside this script: SSPRK(4,3), whose Euler stages of Δt/2 let the limiter
+hold the bounds), at each ``--ne`` and ``--np`` (4: HOMME's; Δt and ν scaled by the scene's rule from
+ne10 np4's 720 s and 4.6e15 m⁴ s⁻¹, HOMME's swirl test's), or
 ``--flow divergent`` (their case 3, ``divergent_flow``: h moves too, and its l2 at T is scored),
 scored at t = T against the initial fields: Williamson et al. (1992)'s normalised l1, l2, l∞, Lauritzen et al.'s over- and
 undershoots φmax, φmin, each mass's relative change, and the l2 rates between grids; ``--limiter``

@@ -21,7 +21,7 @@ TRACERS = {
     "names": ["bells", "hills", "cylinders", "one"],
     "initial": ["cosine_bells", "gaussian_hills", "slotted_cylinders", "constant"],
 }
-# the study's scene (SSP-RK3; ν_s 4.6e15 m⁴ s⁻¹ at ne10 np4, HOMME's swirl test's ν_q, scaled as
+# the study's scene (SSPRK(4,3); ν_s 4.6e15 m⁴ s⁻¹ at ne10 np4, HOMME's swirl test's ν_q, scaled as
 # Δx^3.2 on other grids; Δt 720 s at ne10, scaled likewise where not given)
 SCENE = Path(__file__).resolve().parents[2] / "benchmarks" / "studies" / "transport" / "deformational_flow.toml"
 
@@ -55,7 +55,7 @@ def scores(path, names=TRACERS["names"]) -> dict:
 
 
 def test_the_prescribed_wind_is_the_flows_and_its_depth_stays():
-    """The forcing term's ∂v/∂t carries the wind along the flow's own: after 60 SSP-RK3 steps of
+    """The forcing term's ∂v/∂t carries the wind along the flow's own: after 60 SSPRK(4,3) steps of
     720 s on ne4 the wind is the exact one within the stages' quadrature error (third order:
     ~(Δt/T)³ of its size), the depth stays h0 to the nondivergent flow's discrete divergence."""
     scene = transport_scene(4, 0.5, 720.0)
@@ -104,7 +104,7 @@ def test_a_short_transport_run_keeps_q_one_and_each_mass(tmp_path):
 
 
 def divergent_run(tmp_path, ne: int) -> tuple:
-    """The divergent flow's whole period (T = 12 days) at ne np4 (SSP-RK3 at 720 s) without ∇⁴,
+    """The divergent flow's whole period (T = 12 days) at ne np4 (SSPRK(4,3) at 720 s) without ∇⁴,
     so that the error is the discretisation's: (h's l2 at T against h0, the tracers' ``scores``),
     with the wind at T checked against the prescribed one, q = 1 and each mass against what the
     steps accumulated."""
@@ -163,7 +163,7 @@ def hills_l2(tmp_path, ne: int, np_: int) -> float:
 
 
 def test_the_hills_converge_with_ne_at_np4_and_np8(tmp_path):
-    """Small grids (CPU 19 s in all, one thread): np4 ne5 → ne10 l2 0.394 → 0.163 (a rate of
+    """Small grids (CPU 17 s in all, one thread, load 9): np4 ne5 → ne10 l2 0.394 → 0.163 (a rate of
     1.27), np8 ne3 → ne4 0.229 → 0.139 (1.73): below the orders (3, 7) here, where the filaments
     are narrower than the grid and the ∇⁴ (ν ∝ Δx^3.2) is strong; np8 at ne4 (28 GLL intervals
     an edge) is already better than np4 at ne10 (30)."""
@@ -195,7 +195,7 @@ def test_solid_body_rotation_is_kappa_zero():
 
 @pytest.mark.slow
 def test_ne10_scores_beside_homme(tmp_path):
-    """The whole test at ne10 np4 (SSP-RK3 at 720 s, ν_q 4.6e15 as HOMME's swirl test, no
+    """The whole test at ne10 np4 (SSPRK(4,3) at 720 s, ν_q 4.6e15 as HOMME's swirl test, no
     limiter): l2 at day 12 no larger than HOMME's figures with its limiter (bells 0.347, hills
     0.182, cylinders 0.437; measured here 0.285, 0.163, 0.416)."""
     scene = transport_scene(10, 12.0, 720.0)

@@ -135,24 +135,42 @@ def mixing(path: Path, pair=("bells", "correlated")) -> dict:
 
 
 def maps(path: Path, png: Path, name: str = "bells") -> None:
-    """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each."""
+    """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each:
+    each element's GLL polynomial evaluated at the cells of ``swe-sphere plot``'s regular grid
+    (``plot_remapper``), so the globe is covered to its edges and poles (a triangulation of the
+    nodes in the lon-lat plane left gaps at 360° and near the poles)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import xarray as xr
 
+    from swe_sphere.io.remap import run_grid
+    from swe_sphere.studies.plotting import plot_edges, plot_remapper, plot_resolution
+
     with xr.open_dataset(path, decode_times=False) as ds:
+        grid = run_grid(ds)
+        res = plot_resolution(grid)
+        lat_e, lon_e = plot_edges(res)
+        remap = plot_remapper(grid, res)
         fig, axes = plt.subplots(1, 3, figsize=(13, 3.2), sharey=True, constrained_layout=True)
         for ax, k in zip(axes, range(3), strict=True):
-            field = ds[name].isel(time=k)
-            art = ax.tricontourf(
-                ds.lon, ds.lat, field, levels=np.linspace(-0.025, 1.075, 23), cmap="viridis", extend="both"
+            art = ax.imshow(
+                remap(ds[name].isel(time=k).values),
+                extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]),
+                origin="lower",
+                interpolation="nearest",
+                aspect="auto",
+                cmap="viridis",
+                vmin=-0.025,
+                vmax=1.075,
             )
             ax.set_title(f"{name} at day {float(ds.time[k]):g}")
             ax.set_xlabel("longitude (°)")
+            ax.set_xticks(np.arange(0, 361, 60))
+            ax.set_yticks(np.arange(-90, 91, 30))
         axes[0].set_ylabel("latitude (°)")
-        fig.colorbar(art, ax=axes, shrink=0.9, label="q")
+        fig.colorbar(art, ax=axes, shrink=0.9, label="q", extend="both")
         fig.savefig(png, dpi=110)
         plt.close(fig)
 

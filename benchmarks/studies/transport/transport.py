@@ -33,7 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: results.py
 from results import positive, quiet_warp, recorded
 
-from swe_sphere import Simulation, load_scene
+from swe_sphere import Simulation, load_scene, remap_dataset
 
 SCENE = Path(__file__).with_name("deformational_flow.toml")
 FLOWS = {"nondivergent": "deformational_flow", "divergent": "divergent_flow"}  # --flow: its case
@@ -134,45 +134,41 @@ def mixing(path: Path, pair=("bells", "correlated")) -> dict:
     }
 
 
-def maps(path: Path, png: Path, name: str = "bells") -> None:
+def maps(path: Path, png: Path, name: str = "bells", resolution: float = 0.5) -> None:
     """``name``'s field at t = 0, T/2 and T of run file ``path`` on a longitude-latitude map each:
-    each element's GLL polynomial evaluated at the cells of ``swe-sphere plot``'s regular grid
-    (``plot_remapper``), so the globe is covered to its edges and poles (a triangulation of the
-    nodes in the lon-lat plane left gaps at 360° and near the poles)."""
+    each element's GLL polynomial evaluated at the points of a regular ``resolution``° grid
+    (``remap_dataset``), drawn cell by cell about them, so the globe is covered to its edges and
+    poles (a triangulation of the nodes in the lon-lat plane left gaps at 360° and near the poles)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import xarray as xr
 
-    from swe_sphere.io.remap import run_grid
-    from swe_sphere.studies.plotting import plot_edges, plot_remapper, plot_resolution
-
-    with xr.open_dataset(path, decode_times=False) as ds:
-        grid = run_grid(ds)
-        res = plot_resolution(grid)
-        lat_e, lon_e = plot_edges(res)
-        remap = plot_remapper(grid, res)
-        fig, axes = plt.subplots(1, 3, figsize=(13, 3.2), sharey=True, constrained_layout=True)
-        for ax, k in zip(axes, range(3), strict=True):
-            art = ax.imshow(
-                remap(ds[name].isel(time=k).values),
-                extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]),
-                origin="lower",
-                interpolation="nearest",
-                aspect="auto",
-                cmap="viridis",
-                vmin=-0.025,
-                vmax=1.075,
-            )
-            ax.set_title(f"{name} at day {float(ds.time[k]):g}")
-            ax.set_xlabel("longitude (°)")
-            ax.set_xticks(np.arange(0, 361, 60))
-            ax.set_yticks(np.arange(-90, 91, 30))
-        axes[0].set_ylabel("latitude (°)")
-        fig.colorbar(art, ax=axes, shrink=0.9, label="q", extend="both")
-        fig.savefig(png, dpi=110)
-        plt.close(fig)
+    field = remap_dataset(path, resolution)[name]
+    half = resolution / 2
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.2), sharey=True, constrained_layout=True)
+    for ax, k in zip(axes, range(3), strict=True):
+        values = field.isel(time=k).values
+        art = ax.imshow(
+            np.concatenate([values, values[:, :1]], axis=1),  # lon 0 again at 360: the cells reach both edges
+            extent=(-half, 360 + half, -90 - half, 90 + half),  # cells centred on the points
+            origin="lower",
+            interpolation="nearest",
+            aspect="auto",
+            cmap="viridis",
+            vmin=-0.025,
+            vmax=1.075,
+        )
+        ax.set_xlim(0, 360)
+        ax.set_ylim(-90, 90)
+        ax.set_title(f"{name} at day {float(field.time[k]):g}")
+        ax.set_xlabel("longitude (°)")
+        ax.set_xticks(np.arange(0, 361, 60))
+        ax.set_yticks(np.arange(-90, 91, 30))
+    axes[0].set_ylabel("latitude (°)")
+    fig.colorbar(art, ax=axes, shrink=0.9, label="q", extend="both")
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
 
 
 def main() -> None:

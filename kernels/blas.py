@@ -6,6 +6,8 @@ otherwise exceed the arithmetic; 1 on CUDA). Dim (rows, N/block); ``offset``
 counts blocks.
 """
 
+from typing import Any
+
 import warp as wp
 
 f64 = wp.float64
@@ -122,19 +124,20 @@ def row_totals(src: wp.array2d(dtype=f64), out: wp.array(dtype=f64)):
 
 @wp.kernel
 def first_bad_node(
-    x: wp.array2d(dtype=f64), check_depth: int, first: wp.array(dtype=wp.int32), block: int, offset: int
+    x: wp.array2d(dtype=Any), check_depth: int, h0: f64, first: wp.array(dtype=wp.int32), block: int, offset: int
 ):
-    """first[0] = min index p where u, v or h is not finite, or (if check_depth) h ≤ 0;
-    unchanged if there is none. Dim N/block: a thread's first bad node of its ``block``
-    nodes only (the smallest of them)."""
+    """first[0] = min index p where u, v or h is not finite, or (if check_depth) the depth
+    h + h0 ≤ 0 (h0 0 for a float64 state, H₀ for a float32 one's h − H₀: ``kernels.departure``);
+    unchanged if there is none. Dim N/block: a thread's first bad node of its ``block`` nodes
+    only (the smallest of them)."""
     start = (wp.tid() + offset) * block
     for p in range(start, start + block):
         u, v, h = x[0, p], x[1, p], x[2, p]
         # a − a is exactly 0 for a finite a and NaN otherwise (IEEE 754, no fast-math here):
         # one comparison for the three, a fifth cheaper than three isfinite on the CPU
-        ok = (u - u) + (v - v) + (h - h) == f64(0.0)
+        ok = (u - u) + (v - v) + (h - h) == x.dtype(0.0)
         if check_depth != 0:
-            ok = ok and h > f64(0.0)
+            ok = ok and f64(h) + h0 > f64(0.0)
         if not ok:
             wp.atomic_min(first, 0, p)
             return

@@ -69,11 +69,13 @@ def element_mass(
 ):  # fmt: skip
     """out[slot, e] = Σ spheremp·h (m³) over element e's ``lanes`` lanes (its np² nodes), in
     node order: the same bits for an element whatever the ranks and the layout (HOMME
-    ``global_integral``'s element sums). Dim nelem (``offset`` in elements)."""
+    ``global_integral``'s element sums); h float64, or a float32 state's h − H₀ read in float64
+    (its mass less H₀·area: the fixer takes differences). Dim nelem (``offset`` in elements)."""
     e = wp.tid() + offset
     s = f64(0.0)
     for p in range(e * lanes, (e + 1) * lanes):
-        s += wp.dot(spheremp[p], h[p])
+        w = spheremp[p]
+        s += wp.dot(w, type(w)(h[p]))
     out[slot, e] = s
 
 
@@ -83,4 +85,5 @@ def restore_mass(h: wp.array(dtype=Any), totals: wp.array(dtype=f64), area: f64,
     over the sphere's area (m²) by weight spheremp, a uniform depth (every copy of a node moved
     alike: h stays continuous). Dim N/W."""
     p = wp.tid() + offset
-    h[p] = h[p] + h.dtype((totals[0] - totals[1]) / area)
+    v = h[p]
+    h[p] = v + type(v)(type(v[0])((totals[0] - totals[1]) / area))  # rounded once to h's float type

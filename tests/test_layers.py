@@ -210,7 +210,8 @@ def test_steppers_solvers_and_the_adjoint_ask_the_model_for_its_protocol_alone()
     SteppingModel`` (20: issue 100 added ``recorder``, the tape injected where it was probed for,
     and the implicit split ``implicit_terms`` and ``implicit_inverse``;
     issue 99 ``filter``, which a gradient refuses; issue 125 ``rows``, a state's with its tracers, and ``limiter``, theirs;
-    issue 128 ``state_dtype``, ``to_step_state``, ``from_step_state`` and ``restore_mass``, the float32 state's)
+    issue 128 ``state_dtype``, ``to_step_state``, ``from_step_state`` and ``restore_mass``, the float32 state's,
+    and ``held``, the state a run keeps between steps)
     of a model, and every one of them is a ``ShallowWater``'s."""
     from swe_sphere.config.scene import load_scene
     from swe_sphere.model.protocol import members
@@ -218,7 +219,7 @@ def test_steppers_solvers_and_the_adjoint_ask_the_model_for_its_protocol_alone()
     from helpers import make_sim
 
     public = set(members())
-    assert len(public) == 25
+    assert len(public) == 26
     files = [p for d in ("steppers", "solvers", "adjoint") for p in sorted((REPO / "swe_sphere" / d).glob("*.py"))]
     assert len(files) >= 30
     model = make_sim(load_scene("galewsky", ne=2, np_=4)).model  # every term but the forcing

@@ -162,6 +162,10 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
     ("tc7_era_july", ["--days", "0.1"]),  # a reanalysis start (ERA-Interim's July), synthesised at each rank's nodes
     ("tc5_mountain", ["--stepper", "kgu35", "--days", "0.1", "--precision", "float32"]),  # a float32 tendency
     ("tc5_mountain", ["--stepper", "rk4", "--days", "0.1", "--precision", "float32_state"]),  # the float32 state
+    (  # the float32 state kept between steps: its fixer's mass taken once, the ∇⁴ on its float64 copy
+        "tc5_mountain",
+        ["--stepper", "rk4", "--days", "0.1", "--precision", "float32_state", "-s", "numerics.compensated=false"],
+    ),
     (  # a digital-filter start; T213 errors at day 1
         "tc5_mountain",
         ["--stepper", "rk4", "--dt", "3600", "--days", "1", "-s", "case.initialization=dfi"]
@@ -210,6 +214,8 @@ def assert_continued(folder: Path, args: list[str], days: float) -> None:
 
 
 LEAPFROG = ["tc2_steady", "--ne", "2", "--stepper", "leapfrog", "--dt", "1800", "--no-progress"]  # continued
+KEPT = ["galewsky", "--ne", "2", "--np", "4", "--dt", "1800", "--precision", "float32_state", "--no-progress"]
+KEPT += ["-s", "numerics.compensated=false"]  # the float32 state kept between steps, continued
 ERA = HERE.parent / "testcases" / "data" / "eraint_july_500hPa.nc"  # a reanalysis file, copied and then deleted
 # on every rank once all have ended the run (rank 0 still reads the file after the loop: its summary's case)
 GONE = "import pathlib, sys\nfrom mpi4py import MPI\nMPI.COMM_WORLD.Barrier()\npathlib.Path(sys.argv[1]).unlink(missing_ok=True)\n"
@@ -270,6 +276,7 @@ OVER_RANKS = {
         r: [explicit_argv(d, i, r) for i in range(len(EXPLICIT_RUNS))] for r in (2, 3)
     },
     "test_run_on_two_ranks_continues_on_three": lambda d: continue_on_three(d, LEAPFROG, 0.5),
+    "test_a_kept_float32_state_continues_on_three": lambda d: continue_on_three(d, KEPT, 0.5),
     "test_a_branch_on_two_ranks_has_the_bits_of_one": branch_commands,
     "test_a_reanalysis_run_continues_on_three_without_its_file": reanalysis_commands,
     **{
@@ -377,6 +384,14 @@ def test_run_on_two_ranks_continues_on_three(over_ranks):
     continued on 3 ends with the bits of an uninterrupted 1-rank run."""
     folder, _ = over_ranks
     assert_continued(folder, LEAPFROG, 0.5)
+
+
+def test_a_kept_float32_state_continues_on_three(over_ranks):
+    """Issue 128: a run that keeps the float32 state between steps (``model.held``), stopped on 2
+    ranks (its h − H₀ bits and its fixer's mass in the restart file) and continued on 3, ends
+    with the bits of an uninterrupted 1-rank run (Galewsky ne2 np4, its ssprk3 and ∇⁴)."""
+    folder, _ = over_ranks
+    assert_continued(folder, KEPT, 0.5)
 
 
 def test_a_reanalysis_run_continues_on_three_without_its_file(over_ranks):

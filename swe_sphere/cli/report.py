@@ -116,9 +116,10 @@ def header(args, sim, output, device, comm) -> None:
 
 def precision_line(scene) -> str:
     """The header's ``precision`` line: the scene's (``Scene.precision``), float32 the tendency's and the ∇⁴'s."""
+    between = "float64 between steps" if scene.compensated else "float32 between steps, h - H0"
     state = {
         "float32": " (tendency and hyperviscosity; state float64)",
-        "float32_state": " (tendency, hyperviscosity and a step's state and stages; state float64 between steps)",
+        "float32_state": f" (tendency, hyperviscosity and a step's state and stages; state {between})",
     }.get(scene.precision, "")
     return f"precision   {scene.precision}{state}"
 

@@ -102,7 +102,8 @@ class Scene:
         "float32_state", a step's state and stages float32 too (``model.precision``).
     compensated : bool
         [numerics] compensated: under "float32_state", whether a step's float32 increment is
-        added to the float64 state in float64 (True, the default); unread otherwise.
+        added to a float64 state the run holds between steps (True, the default), or the run
+        keeps the float32 state from step to step (False: ``model.held``); unread otherwise.
     mass_fixer : bool
         [numerics] mass_fixer: under "float32_state", whether a step's end puts back the mass
         its start held (True, the default: ``model.mass_fixer``); unread otherwise.
@@ -172,7 +173,7 @@ class Scene:
     own_planet: dict | None = field(default=None, compare=False)
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type (and "float32_state": the state's)
-    compensated: bool = True  # [numerics] compensated: the float32 state's increments added in float64
+    compensated: bool = True  # [numerics] compensated: the float32 state's increments added to a float64 one
     mass_fixer: bool = True  # [numerics] mass_fixer: the float32 state's mass put back each step
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
     tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)

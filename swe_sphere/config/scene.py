@@ -74,8 +74,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       refused with a stepper that differences the RHS
                       (``Described.float32_refusal``) | "float32_state" (a step's state and
                       stages float32 too: the explicit Runge-Kutta steppers, a fixed dt),
-                      compensated = true | false (the float32 state's increments added in
-                      float64, or the state rounded: ``Scene.compensated``),
+                      compensated = true | false (the float32 state's increments added to a
+                      float64 one, or the float32 state kept from step to step: ``Scene.compensated``),
                       mass_fixer = true | false (the float32 state's mass put back each step:
                       ``Scene.mass_fixer``)
 

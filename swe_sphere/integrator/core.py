@@ -55,7 +55,7 @@ class Unit:
         """The unit of ``model`` and ``stepper`` from ``starts`` (members, rows, n: u, v, h and
         the tracers' masses), prepared."""
         joined = np.concatenate(list(starts), axis=1)
-        x = model.new_state(*joined[:3], masses=joined[3:] if model.tracers else None)
+        x = model.held.new(joined[: model.rows])  # the state the run holds (``model.held``)
         stepper.prepare(x)
         return cls(model, stepper, x, wp.clone(x), GraphedSteps(backend, model.launches.guard, graphs), len(starts))
 

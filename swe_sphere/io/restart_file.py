@@ -65,11 +65,14 @@ from its scene's case as it always did: the format is 3 either way."""
 MAX_FROUDE = 2.0  # |v| / sqrt(g max h) beyond which a stored wind is not a state the model made
 
 
-def content_hash(step: int, x: np.ndarray, stepper_state: dict) -> str:
-    """SHA-256 (hex) of the step, the state ``x`` and the stepper's history
-    (arrays as float64 bytes, scalars by repr, in key order)."""
+def content_hash(step: int, x: np.ndarray, stepper_state: dict, departure: np.ndarray | None = None) -> str:
+    """SHA-256 (hex) of the step, the state ``x``, a float32 state's ``departure`` (its float32
+    bytes; None: none) and the stepper's history (arrays as float64 bytes, scalars by repr, in
+    key order)."""
     h = hashlib.sha256(str(int(step)).encode())
     h.update(np.ascontiguousarray(x, dtype=np.float64).tobytes())
+    if departure is not None:
+        h.update(np.ascontiguousarray(departure, dtype=np.float32).tobytes())
     for key in sorted(stepper_state):
         value = stepper_state[key]
         h.update(key.encode())
@@ -119,6 +122,7 @@ def write(
     control: dict | None = None,
     members: int | None = None,
     analysed=None,
+    departure: np.ndarray | None = None,
 ) -> Path:
     """Write a restart file to ``path`` atomically (via ``output.ExclusiveFile``).
 
@@ -132,7 +136,10 @@ def write(
     run's restart interval (days; None: none), which a continuation keeps; ``control``: under
     step control ``StepControl.state()`` (its ``day`` the time written); ``members``: an
     ensemble's (``swe_sphere.ensemble``; x and ``grid`` its members' copies side by side); ``analysed``:
-    a reanalysis start's ``reanalysis.Analysed`` (``ANALYSED``; None: the case reads no file). Raises
+    a reanalysis start's ``reanalysis.Analysed`` (``ANALYSED``; None: the case reads no file);
+    ``departure``: (N,) a run's kept float32 state's h − H₀ as it held it (``model.held``), the
+    variable ``h_departure`` (float32) a continuation takes its bits from (h = f64(y) + H₀ does
+    not round back to y where |y| < 2⁻²⁹ H₀); None: none. Raises
     ``output.OutputError`` when ``path`` exists and not ``overwrite`` (or is a link /
     being written)."""
     path = Path(path)
@@ -149,7 +156,7 @@ def write(
             ds.time_days = scene.day(step) if control is None else control["day"]
             ds.counters = json.dumps(counters)
             ds.initial = json.dumps(initial)
-            ds.content_sha256 = content_hash(step, x, stepper_state)
+            ds.content_sha256 = content_hash(step, x, stepper_state, departure)
             if restart_every is not None:
                 ds.restart_every_days = float(restart_every)
             if control is not None:
@@ -183,6 +190,10 @@ def write(
                 var = ds.createVariable(name, "f8", ("node",), fletcher32=True)
                 var.setncatts(dict(units="m", long_name=f"{name[:-5]} tracer's mass hq at each element's GLL nodes"))
                 var[:] = row
+            if departure is not None:
+                var = ds.createVariable("h_departure", "f4", ("node",), fletcher32=True)
+                var.setncatts(dict(units="m", long_name="the float32 state's h - H0 as the run held it"))
+                var[:] = departure
             if analysed is not None:
                 _write_analysed(ds, analysed)
             for key, value in stepper_state.items():
@@ -257,7 +268,7 @@ def glance(path) -> dict:
 
 def read(path) -> dict:
     """Read and check a restart file: {"scene": the scene as stored (``Scene.as_dict()``),
-    "step", "x" (3, N), "stepper_state", "counters", "initial", "version", "path"
+    "step", "x" (3, N), "departure" (N float32, or None: ``write``'s), "stepper_state", "counters", "initial", "version", "path"
     (absolute), "sha256" (of the file's bytes), "restart_every", "control" (None without
     step control), "members" (an ensemble's; None for a single run), "analysed" (whether it holds a
     reanalysis start's state, ``ANALYSED``)}. Raises ``CheckpointError`` (one line)."""
@@ -305,6 +316,7 @@ def read(path) -> dict:
             )
             scene = json.loads(attrs["scene"])
             x = np.stack([arrays[name] for name in (*STATE, *mass_names(scene))])
+            departure = arrays["h_departure"].astype(np.float32) if "h_departure" in arrays else None
             stored = dict(
                 scene=scene,
                 step=int(attrs["step"]),
@@ -319,12 +331,13 @@ def read(path) -> dict:
                 control=json.loads(attrs["step_control"]) if "step_control" in attrs else None,
                 members=int(attrs["ensemble_members"]) if "ensemble_members" in attrs else None,
                 analysed="analysed_h_surface" in arrays,
+                departure=departure,
             )
             digest = attrs["content_sha256"]
             planet = stored["scene"].get("planet")
         except (KeyError, ValueError, TypeError, AttributeError) as err:
             raise CheckpointError(f"{path}: damaged checkpoint ({type(err).__name__}: {err})") from None
-    if content_hash(stored["step"], stored["x"], state) != digest:
+    if content_hash(stored["step"], stored["x"], state, stored["departure"]) != digest:
         raise CheckpointError(
             f"{path}: the state or stepper history does not match its content_sha256; the file is damaged"
         )

@@ -190,7 +190,7 @@ class Members:
     def states(self) -> np.ndarray:
         """(N, 3, n) float64: every member's u, v (m s⁻¹) and h (m) on the whole grid's element-local
         nodes (a row more for each tracer's mass hq; a dropped member's NaN), on every rank (collective)."""
-        return self.bcast(self.whole(lambda u: u.x.numpy()))
+        return self.bcast(self.whole(lambda u: u.model.held.values(u.x)))
 
     def set_states(self, states) -> None:
         """Every member's state now (an ensemble filter's analysis, say): ``states`` (N, 3, n) u,
@@ -212,17 +212,21 @@ class Members:
         if self.topology.comm.rank == 0:  # a single run's on rank 0, members' on theirs
             initial.checked_states(states[kept], self.case, "states", kept)
         for u, k in going:
-            u.x.assign(u.model.topology.distribute(np.concatenate(list(states[k]), axis=1), rows, "states"))
+            if u.model.mass_fixer is not None:  # the new states' mass is the one to keep
+                u.model.mass_fixer.taken = False
+            u.model.held.assign(
+                u.x, u.model.topology.distribute(np.concatenate(list(states[k]), axis=1), rows, "states")
+            )
 
     def fields(self) -> tuple:
         """Every member's u, v (m s⁻¹), h (m), (N, n) each on rank 0 ((None, None, None) on the
         others; a dropped member's NaN; collective)."""
-        each = self.whole(lambda u: u.x.numpy()[:3])
+        each = self.whole(lambda u: u.model.held.values(u.x)[:3])
         return (None, None, None) if each is None else tuple(each.swapaxes(0, 1))
 
     def divergence(self) -> np.ndarray | None:
         """Every member's divergence of the wind (N, n), DSS'd (s⁻¹), on rank 0 (None elsewhere; collective)."""
-        return self.whole(lambda u: u.model.operators.wind_divergence(u.x))
+        return self.whole(lambda u: u.model.operators.wind_divergence(u.model.held.float64(u.x)))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of every member now, or of a
@@ -230,9 +234,10 @@ class Members:
         run's (n,) as its run file holds them (``writers.RunFiles``)."""
 
         def rows(u):
-            y = u.x if x is None else x
+            y = u.model.held.float64(u.x if x is None else x)  # the run's state in float64 (``model.held``)
             div = [u.model.operators.wind_divergence(y)[None]] if divergence else []
-            return np.concatenate([y.numpy()[:3], u.model.operators.vorticity(y)[None], *div, y.numpy()[3:]])
+            values = y.numpy()
+            return np.concatenate([values[:3], u.model.operators.vorticity(y)[None], *div, values[3:]])
 
         held = self.each(rows, whole=True)
         each = self.shown(held)
@@ -251,7 +256,8 @@ class Members:
         step's ``gather_fields`` where taken (on every rank, or on none)."""
         whole = self.gather_fields(x) if whole is None else whole
         if self.members is None:
-            errors = self.scorer[0].errors(t, (self.run.x if x is None else x).numpy(), whole.u, whole.v, whole.h)
+            values = self.units[0].model.held.values(self.run.x if x is None else x)
+            errors = self.scorer[0].errors(t, values, whole.u, whole.v, whole.h)
             return self.bcast(self.figures(whole, errors) if self.root else None)
         each = [{**d, **e} for e, d in zip(self.errors_of(t, whole.held, whole.held), self.invariants_of(whole.held))]
         each = self.everyone(each, shown=True)
@@ -292,7 +298,8 @@ class Members:
         (``cases.scoring.Scorer.errors``: Williamson et al. 1992's normalized l1, l2, l∞ of h and
         the wind against an exact solution, or against the scene's spectral reference where
         it stores this day); {} a member for a case with neither (a dropped member's NaN; collective)."""
-        local, held = self.each(lambda u: u.x.numpy()), self.each(lambda u: u.x.numpy(), whole=True)
+        values = lambda u: u.model.held.values(u.x)  # noqa: E731
+        local, held = self.each(values), self.each(values, whole=True)
         return self.everyone(self.errors_of(self.run.seconds(self.run.step), local, held), shown=True)
 
     def h_spread_rms(self) -> float:
@@ -392,36 +399,67 @@ class Members:
 
     # -- restart files ---------------------------------------------------------------------
     def restart_parts(self) -> tuple | None:
-        """(x, stepper state, what the file keeps of the start, grid) of every member for a restart
-        file, on rank 0 (None on the others; collective): the members' arrays side by side."""
+        """(x, stepper state, what the file keeps of the start, grid, a kept float32 state's h − H₀
+        or None: ``model.held``) of every member for a restart file, on rank 0 (None on the others;
+        collective): the members' arrays side by side."""
         policy = {"blow_up": self.blow_up, "dropped": {str(k): step for k, step in self.dropped.items()}}
-        parts = self.on_root([(u.model.topology.gather(u.x.numpy()), u.stepper.state()) for u in self.units])
+        held = self.units[0].model.held
+        targets = self.mass_targets()
+        gather = lambda u, a: None if a is None else u.model.topology.gather(a)  # noqa: E731
+        parts = self.on_root(
+            [
+                (gather(u, u.model.held.values(u.x)), gather(u, held.departure(u.x)), u.stepper.state())
+                for u in self.units
+            ]
+        )
         if parts is None:
             return None
-        x, state = members_state(parts, self.layout)  # every unit, member order
+        x, state = members_state([(x, st) for x, _, st in parts], self.layout)  # every unit, member order
+        departure = np.concatenate([y for _, y, _ in parts]) if held.kept else None
+        fixed = {} if targets is None else {"mass_fixer": targets}
         if self.members is None:
-            return x, state, self.run.initial, self.grid
+            return x, state, {**self.run.initial, **fixed}, self.grid, departure
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
-        return x, state, keep, MemberGrid(self.grid, self.members)
+        return x, state, keep, MemberGrid(self.grid, self.members), departure
+
+    def mass_targets(self) -> list[float] | None:
+        """[the mass a single run's fixer keeps] where it keeps the float32 state (``model.held``,
+        ``model.mass_fixer``: taken at its first step; a restart file keeps it); None otherwise."""
+        fixer = self.units[0].model.mass_fixer  # a single run's (an ensemble's members take theirs again)
+        if self.members is not None or not self.units[0].model.held.kept or fixer is None or not fixer.taken:
+            return None
+        return [fixer.target]
 
     def restore(self, ck, state: bool = True) -> None:
         """The states and stepper histories of the checkpoint ``ck`` (of the run's kind) into the units
         (a single run's state read on rank 0 and handed out, not where ``state`` is False: it was the
         start; ``CheckpointError`` for another grid's)."""
         if self.members is None:
+            held = self.units[0].model.held
             try:
-                if state:
-                    self.run.x.assign(self.topology.distribute(ck.x, self.units[0].model.rows, "checkpoint state"))
+                if state or held.kept:  # a kept float32 state's bits are the file's h_departure, not h's rounding
+                    values = self.topology.distribute(ck.x, self.units[0].model.rows, "checkpoint state")
+                    departure = None
+                    if held.kept:  # rank 0's: the file's, or (a file without it) h's rounding
+                        bits = ck.departure if ck.departure is not None or ck.x is None else held.rounded(ck.x)[2]
+                        departure = self.topology.distribute(bits, 1, "checkpoint h_departure")[0]
+                    held.assign(self.run.x, values, departure)
             except ValueError as err:
                 raise CheckpointError(str(err)) from None
             self.run.stepper.restore(ck.stepper_state)
-            self.run.initial = ck.initial
+            self.run.initial = {k: v for k, v in ck.initial.items() if k != "mass_fixer"}
+            self._restore_targets(ck.initial)
             return
         for u, k in zip(self.units, self.unit_held):  # the unit's members' columns of the file's arrays
             nodes = np.arange(ck.x.shape[1]).reshape(ck.members, -1)[k].ravel()
-            u.x.assign(ck.x[:, nodes])
+            u.model.held.assign(u.x, ck.x[:, nodes], None if ck.departure is None else ck.departure[nodes])
             prefix = None if self.layout == "shared" else f"member{k[0]}_"
             u.stepper.restore(unit_state(ck.stepper_state, nodes, prefix))
         dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
         self.out |= {i: int(dropped[k]) for i, k in enumerate(self.held) if k in dropped}
         self.initial_states = ck.initial.get("initial_states", self.initial_states)
+
+    def _restore_targets(self, kept: dict) -> None:
+        """A single run's fixer's mass from a restart file's (``mass_targets``; none kept: taken again)."""
+        for target in kept.get("mass_fixer", ()):
+            self.units[0].model.mass_fixer.target = target

@@ -12,7 +12,8 @@ from ..kernels import blas
 
 
 class BadNodes:
-    """The bad-node check of ``model``'s states (3, N): a node is bad where u, v or h
+    """The bad-node check of ``model``'s states (3, N; float64, or the float32 state the run keeps,
+    ``model.held``): a node is bad where u, v or h
     is not finite or (when the scene has a pressure gradient, so h is a depth) h ≤ 0
     (``kernels.blas.first_bad_node``, launched through the model's recorder).
     Holds two int32 arrays of a slot per CPU thread: ``bad`` (``first``'s) and
@@ -44,7 +45,7 @@ class BadNodes:
         value" or "depth h = … m <= 0", at lat, lon (degrees); the same line on every rank (call on
         all: gathers x and the grid)."""
         topo = self.model.topology
-        values, grid = topo.gather(x.numpy()[:3]), topo.whole_grid()
+        values, grid = topo.gather(self.model.held.values(x)[:3]), topo.whole_grid()
         if values is None:
             return topo.bcast(None)
         u, v, h = values[:, node]
@@ -72,11 +73,12 @@ class BadNodes:
         (an atomic minimum: the same index whatever order the threads run in)."""
         m = self.model
         check_depth = 1 if self.depth else 0
+        h0 = wp.float64(m.held.depth if x.dtype is not wp.float64 else 0.0)  # a float32 state's h is h − H₀
         slots = [first[k : k + 1] for k in range(first.shape[0])]  # one per thread: CPU atomics are plain
         m.launches.replay(
             (name, x.ptr),
             (x,),
             lambda: [
-                m.launches.pointwise(blas.first_bad_node, None, [x, check_depth, first], per_part={"first": slots})
+                m.launches.pointwise(blas.first_bad_node, None, [x, check_depth, h0, first], per_part={"first": slots})
             ],
         )

@@ -34,6 +34,7 @@ class MassFixer:
         # Σ spheremp over the sphere (m²) in the masses' order: the same bits on any rank count
         self.area = float(self.whole_totals(topo.grid.spheremp.reshape(1, nelem, self.block).sum(axis=2))[0])
         self._recorded: dict = {}
+        self.taken = False  # whether ``measure`` took the mass to keep (a kept float32 state's, once)
 
     def whole_totals(self, by_element: np.ndarray) -> np.ndarray:
         """(rows,) sums of (rows, nelem) per-element values of this rank's elements over the
@@ -58,14 +59,39 @@ class MassFixer:
         self._recorded[key].launch()
 
     def measure(self, x: wp.array2d) -> None:
-        """Take x's mass ∫h (m³) as the one to keep (a step's start)."""
+        """Take x's mass ∫h (m³; of a float32 state's h − H₀, less H₀·area) as the one to keep:
+        a step's start, or where the run keeps the float32 state its first step's (``taken``)."""
         self._launch(x, 0)
+        self._total(0)
+        self.taken = True
+
+    @property
+    def target(self) -> float:
+        """The mass ``measure`` took (m³, the float64 sum; collective where ``restore`` is): a
+        restart file keeps a kept float32 state's (``members``), which a continuation sets back."""
+        return float(self.totals.numpy()[0])
+
+    @target.setter
+    def target(self, mass: float) -> None:
+        self.totals.assign(np.array([mass, 0.0]))
+        self.taken = True
 
     def restore(self, x: wp.array2d) -> None:
-        """Move x's depth by the uniform amount that gives it the mass ``measure`` took."""
+        """Move x's depth by the uniform amount that gives it the mass ``measure`` took (each
+        node's move rounded to x's float type: below a float32 state's spacing it is lost, and
+        the mass left out stays a deficit that the next step's fixer puts back with its own)."""
         self._launch(x, 1)
-        if self.topology.distributed:  # a host read: a step over several ranks is never a graph
-            self.totals.assign(self.whole_totals(self.masses.numpy()))
-        else:
-            wp.launch(blas.row_totals, 1, [self.masses, self.totals], device=self.topology.device)
+        self._total(1)
         self.launches.run_lanes(departure.restore_mass, x[2], self.totals, f64(self.area))
+
+    def _total(self, slot: int) -> None:
+        """totals[slot] = the whole grid's sum of masses[slot] (``whole_totals``' bits)."""
+        if self.topology.distributed:  # a host read: a step over several ranks is never a graph
+            totals = self.totals.numpy()
+            totals[slot] = self.whole_totals(self.masses.numpy()[slot : slot + 1])[0]
+            self.totals.assign(totals)
+        else:
+            wp.launch(
+                blas.row_totals, 1, [self.masses[slot : slot + 1], self.totals[slot : slot + 1]],
+                device=self.topology.device,
+            )  # fmt: skip

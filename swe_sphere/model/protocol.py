@@ -1,4 +1,4 @@
-"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 25 members
+"""What a stepper, a solver or the adjoint may ask of a model: ``SteppingModel``, the 26 members
 of ``ShallowWater`` that ``steppers/``, ``solvers/`` and ``adjoint/`` use (``tests/test_layers.py``
 holds them to this list, as the privacy rule holds modules to public names).
 
@@ -16,7 +16,7 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes), and the
   state a step's stages carry: ``state_dtype`` (float64, or float32 under "float32_state"),
   ``to_step_state`` and ``from_step_state`` (the float64 state to it at a step's start and back
-  at its end), ``restore_mass`` (the mass the start held put back after the end's ∇⁴: the float32
+  at its end, or nothing but the mass where the run keeps it: ``held``), ``restore_mass`` (the mass the start held put back after the end's ∇⁴: the float32
   state's mass fixer);
 - **the implicit split**: ``implicit_terms`` (L, the linear gravity-wave terms about a mean depth,
   a ``GravityWaveOperator``) and ``implicit_inverse`` ((I − aL)⁻¹, a ``HelmholtzSolver`` about it),
@@ -55,6 +55,7 @@ class SteppingModel(Protocol):
     limiter: object  # ``model.limiter.TracerLimiter`` of the tracers, or None
     g: float
     state_dtype: object  # the Warp float type a step's stages hold (``precision.state_dtype``)
+    held: object  # ``model.held.HeldState``: the state a run holds between steps (its ``dtype``)
     recorder: object  # None, or a gradient's tape (``adjoint.tape.Tape``) the operators built on it write on
 
     def rhs(self, x: wp.array2d, out: wp.array2d, terms: tuple | None = None) -> None: ...

@@ -28,6 +28,7 @@ from .bad_nodes import BadNodes
 from .element_operators import ElementOperators
 from .filter import ElementFilter
 from .gravity_wave import GravityWaveOperator
+from .held import HeldState
 from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .lanes import TendencyLanes
@@ -105,9 +106,10 @@ class ShallowWater:
         and the ∇⁴ are computed in (``model.precision``: under "float32" the state, its updates
         and every sum stay float64; under "float32_state" an explicit Runge–Kutta step holds its
         state and stages in float32 too, ``state_dtype``: ``model.precision``'s note).
-    compensated : under "float32_state", whether a step's float32 increment is added to the
-        float64 state in float64 (True, the default: compensated) or the state rounded to the
-        float32 one (False; ``kernels.departure``); unread otherwise.
+    compensated : under "float32_state", whether a step's float32 increment is added to a
+        float64 state the run holds between steps (True, the default: compensated, converted at
+        each step's two ends), or the run holds the float32 state from step to step (False:
+        ``held``, ``kernels.departure``); unread otherwise.
     mass_fixer : under "float32_state", whether a step's end puts back the mass ∫h its start
         held (True, the default: ``model.mass_fixer``); unread otherwise.
     depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
@@ -254,6 +256,7 @@ class ShallowWater:
             self.rows,
             rows_geometry=not self.lanes.applies(self.tracers),
         )
+        self.held = HeldState(self)  # the state a run holds between steps, and its float64 reads
         # the tracers' limiter (a scene's tracers.limiter); None: none
         self.limiter = TracerLimiter(self) if self.tracers and limiter != "none" else None
         self.hv = Hyperviscosity(self) if "hyperviscosity" in terms else None  # the ∇⁴: its plan, work arrays, launches
@@ -509,10 +512,15 @@ class ShallowWater:
         [filter]; HOMME ``filter_P``); nothing without the term and the filter. The tracers'
         masses each substep or stage after h's (``hv.apply``: ν_s ∇⁴ of q(h + hs), q read before
         h's ∇⁴), unless ``tracer_hyperviscosity`` is False."""
+        if self.hv is None and self.filter is None:
+            return
+        held, x = x, self.held.float64(x)  # a kept float32 state: on its float64 copy (``held``)
         if self.hv is not None:
             self.hv.apply(x, dt)
         if self.filter is not None:
             self.filter.apply(x)
+        if held is not x:
+            self.held.store(x, held)
 
     # -- the implicit split (Dinosaur's ``implicit_terms`` / ``implicit_inverse``) ----------
     def implicit_terms(self, mean_depth: float = 0.0) -> GravityWaveOperator:
@@ -534,14 +542,21 @@ class ShallowWater:
     def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None:
         """y (3, N, ``state_dtype``) = the state a step's stages carry of x (3, N float64): u, v
         and h − H₀ rounded once to float32 (``kernels.departure.to_departure``); x's mass taken
-        for ``from_step_state`` to put back (``mass_fixer``)."""
-        self.launches.run_lanes(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
-        if self.mass_fixer is not None:
+        for ``from_step_state`` to put back (``mass_fixer``). y is x where the run keeps the
+        float32 state (``held``): its mass taken at its first step alone, and kept."""
+        if y is not x:
+            self.launches.run_lanes(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
+        # a kept float32 state's mass taken once, at its first step (a restart's put back: ``members``):
+        # a step's uniform depth below float32's spacing is lost, so each step's start would drift
+        if self.mass_fixer is not None and (y is not x or not self.mass_fixer.taken):
             self.mass_fixer.measure(x)
 
     def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None:
         """x (3, N float64) from a step's float32 state y at the step's end: the step's increment
-        y − ``to_step_state``(x) added in float64 (``compensated``), or y + H₀."""
+        y − ``to_step_state``(x) added in float64 (``compensated``), or y + H₀; nothing where y
+        is x (the float32 state kept: ``held``)."""
+        if y is x:
+            return
         kernel = departure.add_increment if self.compensated else departure.from_departure
         self.launches.run_lanes(kernel, y, f64(self.tendency_arrays.depth), x)
 

@@ -42,6 +42,7 @@ class Checkpoint:
     control: dict | None = None  # under step control ``StepControl.state()`` (its ``day``: the time reached)
     members: int | None = None  # an ensemble's member count (x every member's, side by side); None: one run
     analysed: bool = False  # the file keeps a reanalysis start's analysed state (``restart_file.ANALYSED``)
+    departure: np.ndarray | None = None  # a kept float32 state's h − H₀ as the run held it (N,; ``model.held``)
 
     @property
     def day(self) -> float:
@@ -87,7 +88,7 @@ def read_on_root(path, comm) -> Checkpoint:
         return read(path)
     ck = from_root(comm, lambda: read(path))
     bare = {} if ck is None else {k: None if isinstance(v, np.ndarray) else v for k, v in ck.stepper_state.items()}
-    light = comm.bcast(None if ck is None else replace(ck, x=None, stepper_state=bare), root=0)
+    light = comm.bcast(None if ck is None else replace(ck, x=None, departure=None, stepper_state=bare), root=0)
     return ck if comm.rank == 0 else light
 
 
@@ -150,14 +151,25 @@ def restore_run(run, ck: Checkpoint, restore) -> None:
         run.control.restore(ck.control)
 
 
-def write_restart(path, run, x, state: dict, initial: dict, grid, **kept) -> Path:
+def write_restart(path, run, x, state: dict, initial: dict, grid, departure=None, **kept) -> Path:
     """The restart file ``path`` (``io.restart_file.write``) of ``run``'s step (a
     ``run_state.RunState``: its scene, step, counters and step control) with the whole state
-    ``x``, the stepper's ``state``, ``initial`` and ``grid``; ``kept`` as ``restart_file.write``
-    takes them (``overwrite``, ``restart_every``, an ensemble's ``members``). Rank 0's."""
+    ``x``, the stepper's ``state``, ``initial``, ``grid`` and a kept float32 state's ``departure``
+    (None: none); ``kept`` as ``restart_file.write`` takes them (``overwrite``, ``restart_every``,
+    an ensemble's ``members``). Rank 0's."""
     control = None if run.control is None else run.control.state()
     return restart_file.write(
-        path, run.scene, run.step, x, state, run.counters, initial, grid=grid, control=control, **kept
+        path,
+        run.scene,
+        run.step,
+        x,
+        state,
+        run.counters,
+        initial,
+        grid=grid,
+        control=control,
+        departure=departure,
+        **kept,
     )
 
 

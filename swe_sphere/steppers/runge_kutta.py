@@ -53,9 +53,11 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
 
     Under the model's ``precision = "float32_state"`` the stages run on a float32 state y
     (u, v, h − H₀: ``ShallowWater.to_step_state`` of x at the step's start) in float32
-    buffers, and the step's end gives y back to x (``ShallowWater.from_step_state``: compensated
-    or rounded) before the ∇⁴, which acts on x as under "float32"; after it the mass fixer puts
-    back the mass x held at the start (``ShallowWater.restore_mass``).
+    buffers, and the step's end gives y back to x (``ShallowWater.from_step_state``: compensated)
+    before the ∇⁴, which acts on x as under "float32"; after it the mass fixer puts back the mass
+    x held at the start (``ShallowWater.restore_mass``). Where the run keeps the float32 state
+    between steps (``ShallowWater.held``, not compensated), x is y: the stages step it in place,
+    and the ∇⁴ acts on its float64 copy on its steps.
     """
 
     explicit = capturable = variable_dt = differentiable = True
@@ -73,8 +75,9 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
         dtype = model.state_dtype
         self._buffers = {name: work_array(self, dtype) for name in buffers}
-        # the float32 state the stages step (None: they step x itself)
-        self._y = None if dtype is f64 else work_array(self, dtype)
+        # the float32 state the stages step (None: they step x itself, float64 or the float32 state
+        # the run keeps: ``model.held``)
+        self._y = None if model.held.dtype is dtype else work_array(self, dtype)
         self._x = None
         self._carried = None  # ``carry_last_stage``: the FSAL stage's weight d_s in the estimate
         self._ahead = None  # the Δt whose first stage the last step's FSAL evaluation wrote (None: not written)
@@ -110,7 +113,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         rounding), nor on a float32 state (its step's end is the conversion back to x)."""
         if self._carried is not None:
             return True
-        if not self.fsal() or "forcing" in self.model.terms or self._y is not None:
+        if not self.fsal() or "forcing" in self.model.terms or self.model.state_dtype is not f64:
             return False
         t = self.table()
         s, d = len(t.b_E), t.estimate[0]
@@ -176,18 +179,26 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
             for (_, _, updates), state in zip(self._stages, states, strict=True)
         ]
 
+    def _float32_state(self):
+        """The float32 state the stages step for a float64 x (a run that keeps the float32 state
+        makes it here, on first use, for a float64 one stepped apart from the run)."""
+        if self._y is None:
+            self._y = work_array(self, self.model.state_dtype)
+        return self._y
+
     def _dt_changed(self):
         self._x = None  # the stages' coefficients made again with the new Δt (the model's launches take them in place)
 
     def advance(self, x):
-        y = x if self._y is None else self._y  # the state the stages step
+        y = x if x.dtype is self.model.state_dtype else self._float32_state()  # the state the stages step
         if self._x is not y:
             self._record(y)
         limiter = self.model.limiter  # the tracers' (a scene's tracers.limiter): the step's start's bounds
         if limiter is not None:
             limiter.bound(x)
         if self._carried is None:
-            if y is not x:
+            departed = self.model.state_dtype is not f64  # y is x where the run keeps it
+            if departed:
                 self.model.to_step_state(x, y)
             for (c, arg, updates), limit in zip(self._stages, self._limited, strict=True):
                 self._at(c)
@@ -195,10 +206,10 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
                     self.model.rhs_update(arg, updates, limit=True)
                 else:
                     self.model.rhs_update(arg, updates)
-            if y is not x:
+            if departed:
                 self.model.from_step_state(y, x)
             self._hyperviscosity(x)
-            if y is not x:
+            if departed:
                 self.model.restore_mass(x)
             return StepStats(len(self._stages))
         evals = len(self._stages)  # s − 1 stages; the FSAL evaluation after the ∇⁴ stands for the first

@@ -1,6 +1,7 @@
 """The float32 state (``precision = "float32_state"``, ``model.precision``, ``kernels.departure``):
 its conversions, a lake at rest held to the bit, TC2's error and mass against float64's and the
-mixed float32's, and a continuation that has the uninterrupted run's bits."""
+mixed float32's, the state kept in float32 between steps (``model.held``) and a continuation
+that has the uninterrupted run's bits."""
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import warp as wp
 from swe_sphere import Simulation
 from swe_sphere.kernels import departure
 from swe_sphere.model.shallow_water import ShallowWater
+from swe_sphere.simulation.checkpoint import read
 from swe_sphere.steppers import make_stepper
 from tests.helpers import cached_grid
 
@@ -72,7 +74,7 @@ def _tc2(precision: str, compensated: bool = True, mass_fixer: bool = False):
     sim = Simulation(
         "tc2_steady", ne=4, np=4, days=1.0, stepper="rk4", progress=False, precision=precision, numerics=numerics
     )
-    return sim.run(), sim.x.numpy()[2].copy()
+    return sim.run(), sim.states()[0, 2].copy()
 
 
 def test_a_float32_state_run_keeps_float64_s_error_and_bounds_its_mass():
@@ -179,3 +181,89 @@ def test_float32_stage_combinations_keep_a_constant_to_the_bit(element_rows):
             want = c0 * y.astype(np.float64) + c1 * b.astype(np.float64) + q * k
             scale = np.abs(y) + np.abs(b) + np.abs(q * k)
             assert 0 < np.abs(got - want).max() and np.all(np.abs(got - want) <= 2 * EPS32 * scale)
+
+
+def test_the_run_keeps_the_float32_state_between_steps_and_reads_it_in_float64():
+    """Under "float32_state" not compensated the run holds u, v and h − H₀ in float32 from step
+    to step (``model.held``), the compensated one (the default) the float64 state; the
+    readers see the float64 state: ``states()`` is f64(y) + (0, 0, H₀) of the held bits, and
+    ``set_states`` rounds h − H₀ once (TC2 ne2 np4, 6 rk4 steps)."""
+    common = dict(ne=2, np=4, days=0.125, stepper="rk4", progress=False, precision="float32_state")
+    kept = Simulation("tc2_steady", numerics={"compensated": False}, **common)
+    plain = Simulation("tc2_steady", **common)
+    assert kept.x.dtype == wp.float32 and plain.x.dtype == wp.float64
+    kept.run()
+    h0 = kept.model.held.depth
+    y = kept.x.numpy()
+    states = kept.states()[0]
+    assert np.array_equal(states[:2], y[:2].astype(np.float64))
+    assert np.array_equal(states[2], y[2].astype(np.float64) + h0)
+    shifted = states.copy()
+    shifted[2] += 0.5  # half a metre: within float32's reach of h − H₀
+    kept.set_states(shifted[None])
+    assert np.array_equal(kept.x.numpy()[2], (shifted[2] - h0).astype(np.float32))
+
+
+@pytest.mark.parametrize("scene, options", [("tc2_steady", {"stepper": "rk4"}), ("galewsky", {"np": 4})])
+def test_a_kept_float32_state_continues_to_the_bit(tmp_path, scene, options):
+    """A restart file of a kept float32 state holds h − H₀'s float32 bits as they were
+    (``h_departure``: f64(y) + H₀ does not round back to y where |y| < 2⁻²⁹ H₀) and the mass
+    its fixer keeps, so a run stopped at day 0.25 and continued to day 0.5 has the uninterrupted
+    run's bits (TC2 with rk4, Galewsky with its ssprk3 and ∇⁴ on its steps; ne3, Δt 1800 s, 24
+    steps)."""
+    common = dict(
+        ne=3, dt=1800.0, progress=False, precision="float32_state", numerics={"compensated": False}, **options
+    )
+    whole = Simulation(scene, days=0.5, **common)
+    result = whole.run()
+    half = Simulation(scene, days=0.25, **common)
+    half.run()
+    half.write_checkpoint(tmp_path / "ck.nc")
+    ck = read(tmp_path / "ck.nc")
+    assert ck.departure.dtype == np.float32 and np.array_equal(ck.departure, half.x.numpy()[2])
+    assert "mass_fixer" in ck.initial
+    rest = Simulation.from_checkpoint(tmp_path / "ck.nc", "cpu", days=0.5, progress=False)
+    assert rest.x.dtype == wp.float32
+    rest.run()
+    assert rest.step == whole.step == result.steps == 24 and np.array_equal(rest.x.numpy(), whole.x.numpy())
+
+
+def test_a_restart_keeps_departures_that_h_cannot_hold(tmp_path):
+    """Departures |y| < 2⁻²⁹ H₀ (here 1e-6 m and less at H₀ ≈ 2.7 km) do not survive h = f64(y) + H₀
+    and back, so the restart file keeps them as ``h_departure`` and the continuation starts from
+    their bits (TC2 ne2 np4, the held state's h − H₀ set to tiny departures)."""
+    sim = Simulation(
+        "tc2_steady", ne=2, np=4, days=0.125, stepper="rk4", progress=False, precision="float32_state",
+        numerics={"compensated": False},
+    )  # fmt: skip
+    held, y = sim.model.held, sim.x.numpy()
+    y[2] = np.float32(1e-6) * np.cos(sim.model.grid.lat * 7.0).astype(np.float32)  # continuous: a function of place
+    sim.x.assign(y)
+    assert not np.array_equal(held.rounded(held.values(sim.x))[2], y[2])  # h's rounding loses them
+    sim.write_checkpoint(tmp_path / "ck.nc")
+    rest = Simulation.from_checkpoint(tmp_path / "ck.nc", "cpu", progress=False)
+    assert np.array_equal(rest.x.numpy(), y)
+
+
+@pytest.mark.parametrize("per_element", [True, False])
+def test_the_kept_state_has_the_bits_of_the_state_converted_at_each_step(per_element):
+    """Keeping the float32 state between steps leaves out conversions that give back what they
+    took (y → f64(y) + H₀ → y, where no |y| < 2⁻²⁹ H₀): 8 Galewsky ne2 np4 steps (its ∇⁴ on its
+    steps through the float64 copy) of the kept state have the bits of the same steps on a float64
+    state converted at each step's two ends (``ExplicitRK`` given a float64 x), without the fixer
+    (whose kept form takes the mass once), on either CPU layout."""
+    sim = Simulation(
+        "galewsky", ne=2, np=4, dt=1800.0, days=1.0, progress=False, precision="float32_state",
+        numerics={"compensated": False, "mass_fixer": False}, per_element=per_element,
+    )  # fmt: skip
+    held = sim.model.held
+    x = wp.array(held.values(sim.x), dtype=wp.float64, device="cpu")
+    for _ in range(8):
+        sim.try_step(sim.x)
+    other = make_stepper(sim.stepper.name, sim.model, 1800.0)
+    for _ in range(8):
+        other.step(x)
+    y = sim.x.numpy()
+    assert np.abs(y[2]).min() > 2.0**-29 * held.depth
+    assert np.array_equal(held.rounded(x.numpy()), y)  # x after its ∇⁴, rounded as its next step's start
+    assert not np.array_equal(held.values(sim.x), x.numpy())  # which the kept state did at its ∇⁴

@@ -376,6 +376,61 @@ def across_layout(a, lanes: int, np_: int, pad: bool = False):
     return t.transpose(0, 1, 3, 2).reshape(rows, nb * nn, W).copy()
 
 
+def _transpose16_snippet() -> str:
+    """The C++ of ``transpose16``: on the CPU 16 loads, the 16 × 16 transpose as four rounds of
+    16 two-vector shuffles (round s swaps bit s of the row and the column index: rows i and
+    i + 2^s exchange their off-diagonal 2^s-blocks), ``count`` stores; on CUDA (where the lanes do
+    not run, but every module compiles to PTX) a value at a time."""
+    names = [f"a{w}" for w in range(16)]
+    lines = [
+        "#if defined(__CUDA_ARCH__)",
+        "for (int n = 0; n < count; ++n) {",
+        "    wp::vec_t<16, wp::float32> b;",
+        "    for (int w = 0; w < 16; ++w)",
+        "        b.c[w] = wp::index(src, r, first + w < last ? first + w : last).c[n];",
+        "    wp::index(dst, dr, dfirst + n) = b;",
+        "}",
+        "#else",
+        "typedef float v16 __attribute__((ext_vector_type(16)));",
+    ]
+    for w, a in enumerate(names):
+        lines.append(f"v16 {a}; __builtin_memcpy(&{a}, &wp::index(src, r, first + {w} < last ? first + {w} : last), 64);")
+    for bit in range(4):
+        s = 1 << bit
+        for i in range(16):
+            if i & s:
+                continue
+            lo = [j if not j & s else 16 + j - s for j in range(16)]
+            hi = [j + s if not j & s else 16 + j for j in range(16)]
+            lines.append(f"{{ v16 t = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, lo))});")
+            lines.append(f"  a{i + s} = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, hi))}); a{i} = t; }}")
+    for n, a in enumerate(names):
+        lines.append(f"if ({n} < count) __builtin_memcpy(&wp::index(dst, dr, dfirst + {n}), &{a}, 64);")
+    lines.append("#endif")
+    return "\n".join(lines) + "\n"  # the #endif on a line of its own
+
+
+_vec16f = wp.types.vector(length=16, dtype=wp.float32)
+
+
+@wp.func_native(_transpose16_snippet())
+def transpose16(
+    src: wp.array2d(dtype=_vec16f),
+    r: int,
+    first: int,
+    last: int,
+    dst: wp.array2d(dtype=_vec16f),
+    dr: int,
+    dfirst: int,
+    count: int,
+):
+    """dst[dr, dfirst + n][w] = src[r, min(first + w, last)][n] for w < 16 and n < ``count``: 16
+    vectors of 16 float32 transposed, in registers on the CPU (clang's vector shuffles, whatever
+    the target's width) where a value at a time went through memory. What moves an element
+    block's rows between the node layout and the across layout (``tendencies.tendency_across``)."""
+    ...
+
+
 def dvv_matrix(dvv, dtype=f64) -> object:
     """The derivative matrix dvv (np × np, dvv[i, m] = l_m'(ξ_i)) as the value the
     element kernels take (``row_derivatives``' matrix type, of ``dtype``)."""

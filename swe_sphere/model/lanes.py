@@ -5,7 +5,7 @@ quarter of a 512-bit register, a float64 row half. ``TendencyLanes`` runs the te
 element index innermost instead (``kernels.tendencies.tendency_across``, as the ∇⁴'s
 ``laplacian_across`` at np ≥ 5): a thread a block of W elements, each node's value a vector of
 theirs, the geometry held once in that layout, the state and the tendency in the node layout,
-moved lane by lane through a thread's scratch. ``LANES`` says where it runs, per float type,
+moved through a thread's scratch (float32's 16 × 16 blocks transposed in registers). ``LANES`` says where it runs, per float type,
 from one thread's CPU clock at np 4 (``benchmarks/micro/precision_speed.py`` with
 ``float32:rows``, the rows timed beside the lanes): float32's tendency ran 1.2–1.8× faster on
 16 lanes than on rows (TC5 ne30 and ne120); float64's 0.5–0.85× as fast on 8 or 16, so float64

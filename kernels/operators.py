@@ -394,7 +394,9 @@ def _transpose16_snippet() -> str:
         "typedef float v16 __attribute__((ext_vector_type(16)));",
     ]
     for w, a in enumerate(names):
-        lines.append(f"v16 {a}; __builtin_memcpy(&{a}, &wp::index(src, r, first + {w} < last ? first + {w} : last), 64);")
+        lines.append(
+            f"v16 {a}; __builtin_memcpy(&{a}, &wp::index(src, r, first + {w} < last ? first + {w} : last), 64);"
+        )
     for bit in range(4):
         s = 1 << bit
         for i in range(16):
@@ -403,7 +405,9 @@ def _transpose16_snippet() -> str:
             lo = [j if not j & s else 16 + j - s for j in range(16)]
             hi = [j + s if not j & s else 16 + j for j in range(16)]
             lines.append(f"{{ v16 t = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, lo))});")
-            lines.append(f"  a{i + s} = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, hi))}); a{i} = t; }}")
+            lines.append(
+                f"  a{i + s} = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, hi))}); a{i} = t; }}"
+            )
     for n, a in enumerate(names):
         lines.append(f"if ({n} < count) __builtin_memcpy(&wp::index(dst, dr, dfirst + {n}), &{a}, 64);")
     lines.append("#endif")

@@ -559,7 +559,6 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
                     tend[1, e0 + w] = dv
                     tend[2, e0 + w] = dh
 
-
     kernel.__qualname__ = kernel.__name__ = (
         f"tendency_across__np{NP}_w{W}__"
         + "__".join(terms)

@@ -303,6 +303,7 @@ def tendency_element(
     state = row_type(NP, dtype if DEPARTED else f64)  # the state's rows
     SHIFT = dtype is not f64
     ROW = across_as_along(NP)  # ∂η as along(dvv[j], F)
+    fluxes = wp.types.matrix(shape=(max(K, 1) * NP, NP), dtype=dtype)  # K tracers' rows (unread without)
 
     def kernel(
         x: wp.array2d(dtype=state),
@@ -325,8 +326,11 @@ def tendency_element(
         E = mat()  # the Bernoulli function
         v1 = mat()  # covariant wind (vorticity)
         v2 = mat()
-        U1 = mat()  # the contravariant wind, kept for the tracers' fluxes
-        U2 = mat()
+        # each tracer's mass flux metdet hq c¹, c² (tracer k's rows from k·np), formed beside h's where
+        # metdet, c¹ and c² are at hand (was: c¹, c² kept and the fluxes formed in a pass of their
+        # own; TC5 ne16 np4 with one tracer, one thread, the kernel alone: 143.5 → 139.0 µs a call)
+        Q1 = fluxes()
+        Q2 = fluxes()
         for j in range(NP):
             q = base + j
             u = vec(x[0, q])  # the state's rows in the tendency's type
@@ -341,9 +345,10 @@ def tendency_element(
                 c2 = times(Dinv[2, q], u) + times(Dinv[3, q], v)
                 f1[j] = times(Jh, c1)
                 f2[j] = times(Jh, c2)
-                if wp.static(K > 0):
-                    U1[j] = c1
-                    U2[j] = c2
+                for k in range(wp.static(K)):  # by h's arithmetic on hq, while c¹, c² and metdet are at hand
+                    Jq = times(metdet[q], vec(x[3 + k, q]))
+                    Q1[k * NP + j] = times(Jq, c1)
+                    Q2[k * NP + j] = times(Jq, c2)
             if wp.static(ADV):
                 E[j] = dtype(0.5) * (times(u, u) + times(v, v))
                 c1, c2 = covariant(D, x, q)
@@ -384,19 +389,19 @@ def tendency_element(
                 else:
                     cy = across(v1, j, dvv)
             wp.static(finish(terms, weighted))(q, q, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
-        for k in range(wp.static(K)):  # each tracer's mass flux on h's contravariant wind, then its divergence, as h's
+        for k in range(wp.static(K)):  # each tracer's divergence, as h's
+            g1 = mat()
+            g2 = mat()
             for j in range(NP):
-                q = base + j
-                Jh = times(metdet[q], vec(x[3 + k, q]))
-                f1[j] = times(Jh, U1[j])
-                f2[j] = times(Jh, U2[j])
+                g1[j] = Q1[k * NP + j]
+                g2[j] = Q2[k * NP + j]
             for q in range(base, base + NP):
                 j = q - base
                 div = vec()
                 if wp.static(ROW):
-                    div = along(f1[j], dvvT) + along(dvv[j], f2)
+                    div = along(g1[j], dvvT) + along(dvv[j], g2)
                 else:
-                    div = along(f1[j], dvvT) + across(f2, j, dvv)
+                    div = along(g1[j], dvvT) + across(g2, j, dvv)
                 wp.static(tracer_finish(weighted))(q, 3 + k, div, metdet, mass, tend)
 
     kernel.__qualname__ = kernel.__name__ = (

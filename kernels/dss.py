@@ -61,6 +61,31 @@ def copy_value(rows: int, weighted: bool, ghosts: bool, dtype=f64):
 
 
 @functools.cache
+def copies_sum(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f64):
+    """A ``wp.func`` (x, d: ``Copies``, p) → the vector of ``rows`` values Σ_copies c of p's node
+    (spheremp[c] if ``weighted`` else 1) · x[r, c] (``copy_value``), summed in the table's order
+    (``copies`` its columns), so every copy of the node gets the same bits: ``gather``'s sum and
+    ``gather_rows``' at the corners. A vector of one value for no rows (a launch of none)."""
+    R, W, C, G = int(rows), bool(weighted), int(copies), bool(ghosts)
+    fields = wp.types.vector(length=max(R, 1), dtype=f64)
+    value = copy_value(R, W, G, dtype)
+
+    def sum_copies(x: wp.array2d(dtype=dtype), d: Copies, p: int):
+        s = fields()
+        for k in range(C):
+            c = d.table[p, k]
+            if c >= 0:
+                for r in range(R):
+                    s[r] += value(x, d, c, r)
+        return s
+
+    sum_copies.__qualname__ = sum_copies.__name__ = (
+        f"copies_sum_{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}" + suffix(dtype)
+    )
+    return wp.func(sum_copies)
+
+
+@functools.cache
 def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f64):
     """A ``wp.func`` (x, d: ``Copies``, p) → the vector of ``rows`` values
     rspheremp[p] · Σ_copies c of p's node (spheremp[c] if ``weighted`` else 1)
@@ -73,17 +98,10 @@ def gather(rows: int, weighted: bool, copies: int, ghosts: bool = False, dtype=f
     ghost[(c − nlocal)·rows + r]. Without, ghost and nlocal are not read. x of ``dtype``, the
     sums float64 (``copy_value``)."""
     R, W, C, G = int(rows), bool(weighted), int(copies), bool(ghosts)
-    acc = wp.types.vector(length=R, dtype=f64)
-
-    value = copy_value(R, W, G, dtype)
+    summed = copies_sum(R, W, C, G, dtype)
 
     def gather_copies(x: wp.array2d(dtype=dtype), d: Copies, p: int):
-        s = acc()
-        for k in range(C):
-            c = d.table[p, k]
-            if c >= 0:
-                for r in range(R):
-                    s[r] += value(x, d, c, r)
+        s = summed(x, d, p)
         rs = d.rspheremp[p]
         for r in range(R):
             s[r] = rs * s[r]
@@ -313,8 +331,7 @@ def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, 
     R, W, C, G, NP = int(rows), bool(weighted), int(copies), bool(ghosts), int(np_)
     NE = NP - 2
     vec = wp.types.vector(length=NP, dtype=f64)
-    fields = wp.types.vector(length=max(R, 1), dtype=f64)  # a launch of no rows (an RHS of no tendency term) too
-    block = wp.types.matrix(shape=(max(R, 1), NP), dtype=f64)
+    block = wp.types.matrix(shape=(max(R, 1), NP), dtype=f64)  # a launch of no rows (an RHS of no tendency term) too
     xvec = operators.row_type(NP, dtype)
     tag = f"{R}_{'w' if W else 'u'}_{C}{'_ghosts' if G else ''}_np{NP}" + suffix(dtype)
 
@@ -328,17 +345,7 @@ def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, 
     own_row.__qualname__ = own_row.__name__ = f"own_row_{tag}"
     own = wp.func(own_row)
 
-    def corner_sums(x: wp.array2d(dtype=dtype), d: Copies, p: int):
-        s = fields()
-        for k in range(C):
-            c = d.table[p, k]
-            if c >= 0:
-                for r in range(R):
-                    s[r] += value(x, d, c, r)
-        return s
-
-    corner_sums.__qualname__ = corner_sums.__name__ = f"corner_sums_{tag}"
-    corners = wp.func(corner_sums)
+    corners = copies_sum(R, W, C, G, dtype)  # a corner's copies through the table
 
     def rows_sum(
         xr: wp.array2d(dtype=xvec),

@@ -80,8 +80,15 @@ def absolute_vorticity(terms: tuple):
     return wp.func(rot_terms)
 
 
+@wp.func
+def inverse_det(D: wp.array2d(dtype=Any), p: int):
+    """1 / det D at p of D (4, ·) as (D₀₀, D₀₁, D₁₀, D₁₁) rows (``CubedSphere``'s layout)."""
+    d = times(D[0, p], D[3, p]) - times(D[1, p], D[2, p])
+    return over(type(d)(1.0), d)
+
+
 @functools.cache
-def finish(terms: tuple, weighted: bool = False):
+def finish(terms: tuple, weighted: bool = False, inverted: bool = False):
     """The pointwise end of the tendency, shared by the three layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
     cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, s], times mass[p] (the element
@@ -90,9 +97,10 @@ def finish(terms: tuple, weighted: bool = False):
     scratch). Generic: p is a node and the values scalars (per-node kernel), a row and the
     values rows (``operators.row_vectors``, the element kernel), or a node of a block of elements
     and the values vectors of them (``tendency_across``), of the tendency's float type; the
-    state x float64 or of that type, its wind read in that type."""
+    state x float64 or of that type, its wind read in that type. ``inverted``: the argument Dinv
+    holds D, and D⁻¹ = adj(D)/det D is formed from it (``tendency_across`` in float32)."""
     CONT, ADV, COR, PG, TOPO = term_flags(terms)
-    W = bool(weighted)
+    W, INV = bool(weighted), bool(inverted)
     GRAD = ADV or PG
 
     def finish_terms(
@@ -117,7 +125,11 @@ def finish(terms: tuple, weighted: bool = False):
         dh = zero
         if wp.static(CONT):
             dh = -over(div, metdet[p])
-        if wp.static(GRAD):
+        if wp.static(GRAD and INV):  # D⁻¹ᵀ∇ = (D₁₁ bx − D₁₀ by, D₀₀ by − D₀₁ bx) / det D
+            r = inverse_det(Dinv, p)
+            du = -times(r, times(Dinv[3, p], bx) - times(Dinv[2, p], by))
+            dv = -times(r, times(Dinv[0, p], by) - times(Dinv[1, p], bx))
+        elif wp.static(GRAD):
             du = -(times(Dinv[0, p], bx) + times(Dinv[2, p], by))
             dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
         if wp.static(ADV or COR):  # −(ζ + f) k×v
@@ -136,7 +148,9 @@ def finish(terms: tuple, weighted: bool = False):
         tend[1, s] = dv
         tend[2, s] = dh
 
-    finish_terms.__qualname__ = finish_terms.__name__ = "finish__" + "__".join(terms) + ("__mass" if W else "")
+    finish_terms.__qualname__ = finish_terms.__name__ = (
+        "finish__" + "__".join(terms) + ("__mass" if W else "") + ("__inverted" if INV else "")
+    )
     return wp.func(finish_terms)
 
 
@@ -431,7 +445,7 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     arithmetic): float64 gives the rows' bits (tests/model/test_tendency_lanes.py); in float32
     clang contracts other products into FMAs, so the two agree to float32's round-off.
 
-    Arguments: x (3, N/np²) the state, D, Dinv (4, ·), metdet, fcor, forcing (2, ·) topographic
+    Arguments: x (3, N/np²) the state, D, Dinv (4, ·; float32 unread, D⁻¹ formed from D), metdet, fcor, forcing (2, ·) topographic
     −g∇hs, mass (·) spheremp in the across layout (W-vectors of ``dtype``), g, h0 (``tendency``'s,
     a row of np² values of x's type), dvv (``operators.dvv_matrix``), S (a thread's scratch,
     ``parallel.record``'s ``per_part``), tend (3, N/np²) output, nelem (the last block's lanes
@@ -448,7 +462,10 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     node = row_type(NN, dtype)  # an element's np² values in the tendency's type
     state = row_type(NN, xtype)  # and in the state's (x and tend viewed so: one load, one store an element's row)
     mat = row_derivatives(NP, dtype)[1]
-    end = finish(terms, weighted)
+    # float32 forms D⁻¹ from D (``finish``'s inverted): 4 of the 13 geometry vectors a node not
+    # read; float64 reads it (its lanes give the rows' bits)
+    INV = dtype is wp.float32
+    end = finish(terms, weighted, INV)
     # float32 on 16 lanes at np 4: a block's rows moved by ``operators.transpose16``, the state's
     # too where it is float32 (a float32 state's departure; the mixed float32's float64 x goes lane
     # by lane, rounded as it goes)
@@ -506,8 +523,13 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
                 if wp.static(DEPARTED):
                     depth = h + vw(h0[0])
                 Jh = times(metdet[q], depth)
-                S[4, n] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
-                S[5, n] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
+                if wp.static(INV):  # metdet h D⁻¹(u, v) = metdet h (D₁₁ u − D₀₁ v, D₀₀ v − D₁₀ u) / det D
+                    Jh = times(Jh, inverse_det(D, q))
+                    S[4, n] = times(Jh, times(D[3, q], u) - times(D[1, q], v))
+                    S[5, n] = times(Jh, times(D[0, q], v) - times(D[2, q], u))
+                else:
+                    S[4, n] = times(Jh, times(Dinv[0, q], u) + times(Dinv[1, q], v))
+                    S[5, n] = times(Jh, times(Dinv[2, q], u) + times(Dinv[3, q], v))
             E = vw()
             if wp.static(ADV):
                 E = dtype(0.5) * (times(u, u) + times(v, v))
@@ -546,7 +568,10 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
                     cx += dvv[i, m] * S[8, j * NP + m]
                 for m in range(NP):
                     cy += dvv[j, m] * S[7, m * NP + i]
-            end(q, n, div, bx, by, cx, cy, S, Dinv, metdet, fcor, forcing, mass, S)
+            if wp.static(INV):
+                end(q, n, div, bx, by, cx, cy, S, D, metdet, fcor, forcing, mass, S)
+            else:
+                end(q, n, div, bx, by, cx, cy, S, Dinv, metdet, fcor, forcing, mass, S)
         if wp.static(SHUFFLED):  # the tendency out likewise, the last block's lanes past nelem left
             for r in range(3):
                 transpose16(S, r, 0, NN - 1, tend, r, e0, wp.min(W, nelem - e0))

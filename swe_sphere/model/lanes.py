@@ -32,7 +32,8 @@ class TendencyLanes:
     per-element layout at np 4 with any element, else 0: a rank's few elements too (one block, its
     lanes past them padded), so that every rank count has one arithmetic. Where they run (``applies``),
     the model keeps no float32 rows of D, metdet, fcor and −g∇hs (``precision.TendencyArrays``):
-    the geometry is 12 rows of N values of the tendency's type against the rows' 14."""
+    the geometry is 12 rows of N values of the tendency's type (float32's 8: D⁻¹ formed from D) against the
+    rows' 14."""
 
     def __init__(self, model, width: int | None, dtype, per_element: bool):
         self.model = m = model
@@ -65,8 +66,9 @@ class TendencyLanes:
         return sorted(held)
 
     def geometry(self) -> list:
-        """D, Dinv (4, ·), metdet, fcor, −g∇hs (2, ·; a work array's values without topography: unread) and spheremp
-        in the across layout, W-vectors of the tendency's type."""
+        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; a work
+        array's values without topography: unread) and spheremp in the across layout, W-vectors of the tendency's
+        type."""
         if self._geometry is None:
             m, W = self.model, self.lanes
             ops, vw = m.operators, wp.types.vector(length=W, dtype=self.dtype)
@@ -77,9 +79,10 @@ class TendencyLanes:
                 return out if rows > 1 else out[0]
 
             forcing = m.topo_forcing if m.topo_forcing is not None else ops.vec_work
+            D = across(ops.D, 4)
             self._geometry = [
-                across(ops.D, 4),
-                across(ops.Dinv, 4),
+                D,
+                D if self.dtype is wp.float32 else across(ops.Dinv, 4),  # float32 inverts D (``tendency_across``)
                 across(ops.metdet, 1),
                 across(ops.fcor, 1),  # as it is now: a shared ensemble's members set theirs after the build
                 across(forcing, 2),

@@ -121,6 +121,23 @@ def count(args, tally):
                 stepper.step(x)
         s = args.steps
         out[name] = (t.total_launches / s, t.total_bytes / N / s, t.syncs / s, t.launches.copy(), t.bytes.copy())
+        if args.precision == "float32_state":  # and the float32 state kept between steps (``model.held``)
+            _, _, (_, _, x0), model = tc5(
+                args.ne, stepper=name, precision=args.precision, compensated=False, **CUDA_ON_CPU
+            )
+            stepper, x = make_stepper(name, model, scene.dt), model.held.new(x0)
+            for _ in range(args.warmup):
+                stepper.step(x)
+            with tally.counting() as t:
+                for _ in range(args.steps):
+                    stepper.step(x)
+            out[f"{name}:kept"] = (
+                t.total_launches / s,
+                t.total_bytes / N / s,
+                t.syncs / s,
+                t.launches.copy(),
+                t.bytes.copy(),
+            )
     return out, N
 
 
@@ -134,17 +151,22 @@ CONVERSIONS = ("to_departure", "add_increment", "from_departure")
 
 
 def kept_in_float32(counts, names, points_steps) -> None:
-    """Print each stepper's B/pt a step under "float32_state" and without its two conversions
-    (``CONVERSIONS``): a state kept in float32 between steps, the loop, diagnostics and files
-    converting it only where they read it (the mass fixer's reads of the depth counted as they are,
-    of the float64 state)."""
-    print("\nThe float32 state kept between steps: B/pt a step without the conversions at its ends\n")
-    print("| stepper | B/pt/step | conversions | kept in float32 |")
-    print("|---|---:|---:|---:|")
+    """Print each stepper's B/pt a step under "float32_state" (compensated: the float64 state
+    between steps), its two conversions (``CONVERSIONS``), and counted with the float32 state kept
+    between steps (``numerics.compensated = false``, ``model.held``: no conversions at the step's
+    ends; on TC5 HOMME's ∇⁴ every step through its float64 copy, whose two conversions are counted
+    apart)."""
+    print("\nThe float32 state kept between steps: B/pt a step, counted\n")
+    print("| stepper | B/pt/step | conversions | kept in float32 | its ∇⁴ copy's conversions |")
+    print("|---|---:|---:|---:|---:|")
     for name in names:
         bpp, by_kernel = counts[name][1], counts[name][4]
-        conv = sum(b for key, b in by_kernel.items() if key.split("__")[0] in CONVERSIONS) / points_steps
-        print(f"| {name} | {bpp:.0f} | {conv:.0f} | {bpp - conv:.0f} |")
+        kept, kept_by_kernel = counts[f"{name}:kept"][1], counts[f"{name}:kept"][4]
+        conv, copy = (
+            sum(b for key, b in k.items() if key.split("__")[0] in CONVERSIONS) / points_steps
+            for k in (by_kernel, kept_by_kernel)
+        )
+        print(f"| {name} | {bpp:.0f} | {conv:.0f} | {kept:.0f} | {copy:.0f} |")
 
 
 def cpu_check(ne, repeat):

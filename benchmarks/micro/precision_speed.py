@@ -23,7 +23,9 @@ state and stages in float32 too), its RHS on the float32 state as a stage reads 
 (``rhs_call``), each timed against float64 in the same rounds. A precision with ``:rows``
 (``float32:rows``, ``float32_state:rows``) is that precision's model with its tendency on GLL
 rows (``ShallowWater``'s ``lanes=0``), the layout before its vector lanes (``model.lanes``: W
-elements a vector at np 4), timed in the same rounds::
+elements a vector at np 4), timed in the same rounds; ``float32_state:kept`` the float32 state
+kept between steps (``numerics.compensated = false``: ``model.held``, its stepper stepping the
+float32 state with no conversion)::
 
     SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py --grids tc5_ne120_np4 \
         --precisions float64 float32:rows float32 float32_state:rows float32_state
@@ -92,7 +94,10 @@ def device_bytes(*owners) -> int:
 
 
 def float32_state(model, x):
-    """x as a float32 state's stages hold it (u, v, h − H₀ in float32: ``model.precision``)."""
+    """x as a float32 state's stages hold it (u, v, h − H₀ in float32: ``model.precision``);
+    x itself where it is one (a kept state's)."""
+    if x.dtype is wp.float32:
+        return x
     departure = x.numpy() - np.array([0.0, 0.0, model.tendency_arrays.depth])[:, None]
     return wp.array(departure.astype(np.float32), dtype=wp.float32, device=x.device)
 
@@ -108,7 +113,8 @@ def rhs_call(model, x):
 
 def build(name: str, ne: int, np_: int, precision: str):
     """(model, stepper, state) of scene ``name`` at ne, np in ``precision`` (``:rows``: its tendency
-    on rows, ``lanes=0``), one thread, CPU."""
+    on rows, ``lanes=0``; ``:kept``: the float32 state kept between steps, the state the run
+    holds), one thread, CPU."""
     from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
     precision, _, layout = precision.partition(":")
@@ -116,9 +122,12 @@ def build(name: str, ne: int, np_: int, precision: str):
     case = scene.make_case()
     grid = CubedSphere(ne, np_, radius=case.planet.a)
     lanes = 0 if layout == "rows" else None
-    model = ShallowWater.from_scene(scene, grid, case, device="cpu", threads=1, precision=precision, lanes=lanes)
+    options = {"compensated": False} if layout == "kept" else {}
+    model = ShallowWater.from_scene(
+        scene, grid, case, device="cpu", threads=1, precision=precision, lanes=lanes, **options
+    )
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
-    x = model.new_state(*np.stack(case.initial(grid.lat, grid.lon)))
+    x = model.held.new(np.stack(case.initial(grid.lat, grid.lon)))  # the state a run holds
     return model, stepper, x
 
 
@@ -163,7 +172,7 @@ def main(argv=None):
         "--precisions",
         nargs="+",
         default=list(PRECISIONS),
-        choices=("float64", "float32", "float32_state", "float32:rows", "float32_state:rows"),
+        choices=("float64", "float32", "float32_state", "float32:rows", "float32_state:rows", "float32_state:kept"),
         help="float64 first, each timed against it (default %(default)s)",
     )
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")

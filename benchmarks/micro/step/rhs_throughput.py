@@ -119,17 +119,21 @@ def triad_bandwidth(threads=1, n=20_000_000, repeat=5):
     return 5 * 8 * n / median_time(triad, repeat)
 
 
-def build(ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=None, precision="float64"):
+def build(
+    ne, np_, threads, device, stepper=None, dt_factor=1.0, per_element=None, precision="float64", compensated=True
+):
     """TC5 scene on (ne, np): grid, scene, case fields and initial state, model (``per_element``: its
-    layout; ``precision``: its ``model.precision``)."""
+    layout; ``precision``: its ``model.precision``; ``compensated`` False: a float32 state kept
+    between steps, ``model.held``)."""
     scene = load_scene("tc5_mountain_homme", ne=ne, np_=np_)
     if stepper is not None:
         scene = load_scene("tc5_mountain_homme", ne=ne, np_=np_, stepper=stepper, dt=scene.dt * dt_factor)
     grid = CubedSphere(ne, np_)
     case = scene.make_case()
     model = ShallowWater.from_scene(
-        scene, grid, case, device=device, threads=threads, per_element=per_element, precision=precision
-    )
+        scene, grid, case, device=device, threads=threads, per_element=per_element, precision=precision,
+        compensated=compensated,
+    )  # fmt: skip
     fcor, hs = model.operators.fcor.numpy(), model.operators.hs.numpy()
     u, v, h = case.initial(grid.lat, grid.lon)
     return grid, scene, (fcor, hs, np.stack([u, v, h])), model

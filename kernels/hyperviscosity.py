@@ -180,13 +180,16 @@ def _applied(mode: str):
         mu: f64,
         nu: f64,
     ):
+        # in float64 (z's type), stored in the state's: float64, or a float32 state kept between
+        # steps (``model.held``), rounded once
+        o = out[r, p]
         if wp.static(ADD):
-            out[r, p] = out[r, p] + coef * z
+            out[r, p] = type(o)(type(z)(o) + coef * z)
         else:
-            t = src[r, p] + coef * z
+            t = type(z)(src[r, p]) + coef * z
             if wp.static(RKL):
-                t = mu * t + nu * prev[r, p]
-            out[r, p] = t
+                t = mu * t + nu * type(z)(prev[r, p])
+            out[r, p] = type(o)(t)
 
     update.__qualname__ = update.__name__ = f"dss_apply_update_{mode}"
     put = wp.func(update)
@@ -244,9 +247,9 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
         d: Copies,
         coef: f64,
         f: frame_type(dtype),
-        out: wp.array2d(dtype=f64),
-        src: wp.array2d(dtype=f64),
-        prev: wp.array2d(dtype=f64),
+        out: wp.array2d(dtype=Any),
+        src: wp.array2d(dtype=Any),
+        prev: wp.array2d(dtype=Any),
         mu: f64,
         nu: f64,
         block: int,
@@ -282,9 +285,9 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
         rsr: wp.array(dtype=vec),
         coef: f64,
         f: RowFrame,
-        out: wp.array2d(dtype=vec),
-        src: wp.array2d(dtype=vec),
-        prev: wp.array2d(dtype=vec),
+        out: wp.array2d(dtype=Any),
+        src: wp.array2d(dtype=Any),
+        prev: wp.array2d(dtype=Any),
         mu: f64,
         nu: f64,
         offset: int,

@@ -74,15 +74,16 @@ def weak_laplacian_rows(np_: int, dtype=f64):
 
 
 def _source(second: bool, np_: int, dtype):
-    """The rows a pass reads its fields from: Y₁'s (``second``, of ``dtype``) or the state's (float64)."""
-    return row_type(np_, dtype) if second else row_type(np_)
+    """The rows a pass reads its fields from: Y₁'s (``second``, of ``dtype``) or the state's (any
+    float type: float64, or a float32 state's u, v, h − H₀ kept between steps, ``model.held``)."""
+    return row_type(np_, dtype) if second else Any
 
 
 @functools.cache
 def _row_field(second: bool, np_: int, dtype=f64):
     """``field`` (src, hs, f, r, q) → row q of field r (``_ElementParts``), of ``dtype``."""
     NP, S = int(np_), bool(second)
-    vec = row_type(NP, dtype)
+    vec, state = row_type(NP, dtype), row_type(NP)
     SHIFT = dtype is not f64
     RowFrame = frame_type(vec)
 
@@ -96,10 +97,10 @@ def _row_field(second: bool, np_: int, dtype=f64):
         else:
             if r < 3:
                 return times(vec(src[0, q]), f.east[r, q]) + times(vec(src[1, q]), f.north[r, q])
-            if wp.static(SHIFT):  # h + hs − H₀ formed in float64 before it is rounded
-                return vec(src[2, q] + hs[q] - f.h0)
+            if wp.static(SHIFT):  # h + hs − H₀ formed in float64 before it is rounded (a float32 state's h − H₀, H₀ 0)
+                return vec(state(src[2, q]) + hs[q] - f.h0)
             else:
-                return src[2, q] + hs[q]
+                return state(src[2, q]) + hs[q]
 
     field.__qualname__ = field.__name__ = f"laplacian_field_{'second' if S else 'first'}_np{NP}" + suffix(dtype)
     return wp.func(field)
@@ -508,7 +509,7 @@ def laplacian_across(
     else:
 
         def kernel(
-            src: wp.array2d(dtype=state),
+            src: wp.array2d(dtype=Any),  # the state's rows, of any float type (``_source``)
             hs: wp.array(dtype=state),
             delta: wp.array2d(dtype=state),
             c: cvec,

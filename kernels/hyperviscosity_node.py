@@ -115,15 +115,15 @@ def laplacian_flux(cartesian: bool, tensor: bool, np_static: int = 0, dtype=f64)
     v4, v2 = wp.types.vector(length=4, dtype=dtype), wp.types.vector(length=2, dtype=dtype)
     NodeFrame = frame_type(dtype)
 
-    def value(src: wp.array2d(dtype=f64), hs: wp.array(dtype=f64), f: NodeFrame, n: int):
+    def value(src: wp.array2d(dtype=Any), hs: wp.array(dtype=f64), f: NodeFrame, n: int):
         X = v4()
-        if wp.static(CART):
+        if wp.static(CART):  # src the state: float64, or a float32 one's u, v, h − H₀ (H₀ 0: ``model.held``)
             for c in range(3):
                 X[c] = dtype(src[0, n]) * f.east[c, n] + dtype(src[1, n]) * f.north[c, n]
             if wp.static(SHIFT):  # h + hs − H₀ formed in float64 before it is rounded
-                X[3] = dtype(src[2, n] + hs[n] - f.h0)
+                X[3] = dtype(f64(src[2, n]) + hs[n] - f.h0)
             else:
-                X[3] = src[2, n] + hs[n]
+                X[3] = f64(src[2, n]) + hs[n]
         else:
             for r in range(4):
                 X[r] = dtype(src[r, n])
@@ -133,7 +133,7 @@ def laplacian_flux(cartesian: bool, tensor: bool, np_static: int = 0, dtype=f64)
     source = wp.func(value)
 
     def kernel(
-        src: wp.array2d(dtype=f64),
+        src: wp.array2d(dtype=Any if CART else f64),  # the state (of any float type), or Y₁
         hs: wp.array(dtype=f64),
         f: NodeFrame,
         Dinv: wp.array2d(dtype=dtype),

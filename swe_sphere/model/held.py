@@ -5,8 +5,9 @@ Under ``precision = "float32_state"`` without ``compensated`` the run holds the 
 steps carry, u, v and h − H₀ (``kernels.departure``), from its first step to its last: a step
 reads it and writes it in place and converts nothing. What reads it in float64 converts here: the
 diagnostics and the files (``values``: the float64 state on the host), the operators the
-diagnostics run and the ∇⁴ on its steps (``float64``: a float64 copy on the device, one work
-array of the model), a state set from outside and a restart (``assign``: rounded once, or the
+diagnostics run and, with a filter or ν_div ≠ ν, the ∇⁴ on its steps (``float64``: a float64
+copy on the device, one work array of the model; otherwise the ∇⁴ acts on the kept state in place:
+``ShallowWater.hyperviscosity``), a state set from outside and a restart (``assign``: rounded once, or the
 float32 bits as a restart file kept them). Otherwise (float64, "float32", and "float32_state"
 compensated, whose compensation is the float64 state itself) the run holds the float64 state and
 each of these is x itself. u, v and the tracers' rows are the same numbers in either form; only

@@ -137,7 +137,9 @@ class Hyperviscosity:
         nu, nu_div, nu_s = (m.nu, m.nu_div, m.nu_s) if nus is None else nus
         shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
         c = wp.types.vector(length=4, dtype=self.dtype)(nu, nu_div - nu, nu_s, shift)
-        depth = m.tendency_arrays.depth if depth is None else float(depth)
+        if depth is None:  # a float32 state kept between steps holds h − H₀ already (``model.held``)
+            depth = m.tendency_arrays.depth if x.dtype is f64 else 0.0
+        depth = float(depth)
         divergent = nu_div != nu
         if transposed and divergent:
             raise ValueError("the ∇⁴ with nu_div != nu has no transpose")
@@ -529,8 +531,8 @@ class Hyperviscosity:
         or x at the last stage (each read at its own node only). ``tracers``: each stage preceded by
         the tracers' (``apply``'s)."""
         m = self.model
-        if x.shape not in self._rkl_buffers:
-            self._rkl_buffers[x.shape] = wp.zeros_like(x)
+        if (x.shape, x.dtype) not in self._rkl_buffers:
+            self._rkl_buffers[x.shape, x.dtype] = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
         def stage(src, out, prev, mode, mu=1.0, nu=0.0):
@@ -544,7 +546,7 @@ class Hyperviscosity:
             build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
             m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
 
-        prev, cur = x, self._rkl_buffers[x.shape]
+        prev, cur = x, self._rkl_buffers[x.shape, x.dtype]
         stage(x, cur, x, "euler")  # Y_1
         for j in range(2, s + 1):
             out = x if j == s else prev  # Y_{j−2} is not needed after this stage

@@ -514,7 +514,11 @@ class ShallowWater:
         h's ∇⁴), unless ``tracer_hyperviscosity`` is False."""
         if self.hv is None and self.filter is None:
             return
-        held, x = x, self.held.float64(x)  # a kept float32 state: on its float64 copy (``held``)
+        # a kept float32 state (``held``) in place, its first Laplacian reading h − H₀ + hs and its
+        # last DSS adding to it (rounded once); with a filter, tracers or ν_div ≠ ν (δ's operator
+        # reads float64), on its float64 copy
+        direct = self.filter is None and not self.tracers and self.nu_div == self.nu
+        held, x = x, (x if direct else self.held.float64(x))
         if self.hv is not None:
             self.hv.apply(x, dt)
         if self.filter is not None:

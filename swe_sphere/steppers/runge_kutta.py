@@ -57,7 +57,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     before the ∇⁴, which acts on x as under "float32"; after it the mass fixer puts back the mass
     x held at the start (``ShallowWater.restore_mass``). Where the run keeps the float32 state
     between steps (``ShallowWater.held``, not compensated), x is y: the stages step it in place,
-    and the ∇⁴ acts on its float64 copy on its steps.
+    and the ∇⁴ acts on it on its steps (``ShallowWater.hyperviscosity``).
     """
 
     explicit = capturable = variable_dt = differentiable = True

@@ -246,14 +246,18 @@ def test_a_restart_keeps_departures_that_h_cannot_hold(tmp_path):
 
 
 @pytest.mark.parametrize("per_element", [True, False])
-def test_the_kept_state_has_the_bits_of_the_state_converted_at_each_step(per_element):
+@pytest.mark.parametrize("scene", ["tc2_steady", "galewsky"])
+def test_the_kept_state_steps_as_the_state_converted_at_each_step(scene, per_element):
     """Keeping the float32 state between steps leaves out conversions that give back what they
-    took (y → f64(y) + H₀ → y, where no |y| < 2⁻²⁹ H₀): 8 Galewsky ne2 np4 steps (its ∇⁴ on its
-    steps through the float64 copy) of the kept state have the bits of the same steps on a float64
-    state converted at each step's two ends (``ExplicitRK`` given a float64 x), without the fixer
-    (whose kept form takes the mass once), on either CPU layout."""
+    took (y → f64(y) + H₀ → y, where no |y| < 2⁻²⁹ H₀): 8 steps (ne2 np4, Δt 1800 s, without the
+    fixer, whose kept form takes the mass once) of the kept state have the bits of the same steps
+    on a float64 state converted at each step's two ends (``ExplicitRK`` given a float64 x, its
+    value rounded as its next step's start would), on either CPU layout, where no ∇⁴ acts (TC2);
+    with Galewsky's ∇⁴, which acts on the kept state in place (its first Laplacian reads h − H₀ +
+    hs, its last DSS adds to the float32 state and rounds once) and on the float64 state there,
+    within steps · ε₃₂ of each row's largest value (measured 0.6, 3.5, 2.0 ε₃₂ in all)."""
     sim = Simulation(
-        "galewsky", ne=2, np=4, dt=1800.0, days=1.0, progress=False, precision="float32_state",
+        scene, ne=2, np=4, dt=1800.0, days=1.0, progress=False, precision="float32_state",
         numerics={"compensated": False, "mass_fixer": False}, per_element=per_element,
     )  # fmt: skip
     held = sim.model.held
@@ -263,7 +267,10 @@ def test_the_kept_state_has_the_bits_of_the_state_converted_at_each_step(per_ele
     other = make_stepper(sim.stepper.name, sim.model, 1800.0)
     for _ in range(8):
         other.step(x)
-    y = sim.x.numpy()
+    y, z = sim.x.numpy(), held.rounded(x.numpy())  # x as its next step's start rounds it
     assert np.abs(y[2]).min() > 2.0**-29 * held.depth
-    assert np.array_equal(held.rounded(x.numpy()), y)  # x after its ∇⁴, rounded as its next step's start
-    assert not np.array_equal(held.values(sim.x), x.numpy())  # which the kept state did at its ∇⁴
+    if scene == "tc2_steady":
+        assert np.array_equal(z, y)
+    else:
+        scale = np.abs(z).max(axis=1)[:, None]
+        assert 0 < np.abs(y - z).max() and np.all(np.abs(y - z) <= 8 * EPS32 * scale)

@@ -15,7 +15,7 @@ geometry's and the tendency's bytes, and on a GPU without fast float64 runs at f
 
 ``precision = "float32_state"`` holds a step's state and stages in float32 as well: u, v and the
 depth's departure h − H₀ (``kernels.departure``), which the tendency reads as it is stored and
-the DSS's combinations write (each summed in float64 and rounded once); an explicit Runge–Kutta
+the DSS's combinations write (each summed in float32: ``kernels.dss.combination``); an explicit Runge–Kutta
 step takes them from the float64 state at its start and gives its increment back to it at its
 end, compensated (the float32 increment added in float64: Klöwer et al. 2022's compensated time
 integration) or not (``ShallowWater``'s ``compensated``). Between steps the state is float64: the

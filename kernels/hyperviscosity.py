@@ -226,7 +226,7 @@ def _applied(mode: str):
 
 
 @functools.cache
-def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
+def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64, state=f64):
     """The second DSS of the ∇⁴, applied as it sums Y₂ = DSS(L) (``dss.gather``, unweighted,
     4 rows: the weak-form Y₂ of ``laplacian_element``/``laplacian_node``), its Cartesian wind
     taken back to (east, north) components, by ``mode``: "add", out += coef·Y₂ (out may be the
@@ -238,7 +238,9 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
     d (``dss.Copies``), coef, f (``Frame``), out (3, N), src (3, N; read by "euler" and "rkl"),
     prev (3, N), mu, nu (read by "rkl"), block, offset. ValueError for another mode.
     Dim N/block (as ``dss.dss_rows``). ``dtype``: the ∇⁴'s float type, of L and f; the sums
-    (``dss.gather``) and the update float64, as the state."""
+    (``dss.gather``) and the update float64; ``state`` the state's float type (out, src, prev:
+    float64, or a float32 state kept between steps, ``model.held``, the update rounded once).
+    """
     sum_copies = gather(4, False, copies, ghosts, dtype)
     applied = _applied(mode)
 
@@ -247,9 +249,9 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
         d: Copies,
         coef: f64,
         f: frame_type(dtype),
-        out: wp.array2d(dtype=Any),
-        src: wp.array2d(dtype=Any),
-        prev: wp.array2d(dtype=Any),
+        out: wp.array2d(dtype=state),
+        src: wp.array2d(dtype=state),
+        prev: wp.array2d(dtype=state),
         mu: f64,
         nu: f64,
         block: int,
@@ -259,12 +261,13 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64):
         for p in range(start, start + block):
             applied(sum_copies(L, d, p), f.east, f.north, coef, out, src, prev, mu, nu, p)
 
-    dss_apply.__qualname__ = "dss_apply" + ("" if mode == "add" else "__" + mode) + suffix(dtype)  # the kernel's key
+    kept = "" if state is f64 else "__state" + suffix(state)  # a float32 state kept between steps (``model.held``)
+    dss_apply.__qualname__ = "dss_apply" + ("" if mode == "add" else "__" + mode) + suffix(dtype) + kept  # the key
     return wp.kernel(dss_apply, enable_backward=False, module="unique")
 
 
 @functools.cache
-def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", dtype=f64):
+def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", dtype=f64, state=f64):
     """``dss_apply`` by element on GLL rows (``dss.gather_rows``, the node gather's bits), for
     the CPU (``Topology.by_element``): arguments Lr, L (L as rows and as it is), d
     (``dss.Copies``), g (``dss.Edges``), wr, rsr (spheremp's first N and rspheremp as rows),
@@ -285,9 +288,9 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
         rsr: wp.array(dtype=vec),
         coef: f64,
         f: RowFrame,
-        out: wp.array2d(dtype=Any),
-        src: wp.array2d(dtype=Any),
-        prev: wp.array2d(dtype=Any),
+        out: wp.array2d(dtype=row_type(NP, state)),
+        src: wp.array2d(dtype=row_type(NP, state)),
+        prev: wp.array2d(dtype=row_type(NP, state)),
         mu: f64,
         nu: f64,
         offset: int,
@@ -297,7 +300,8 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
             y = rows_dss(Lr, L, d, g, wr, rsr, e, j)
             applied(y, f.east, f.north, coef, out, src, prev, mu, nu, e * NP + j)
 
+    kept = "" if state is f64 else "__state" + suffix(state)
     dss_apply.__qualname__ = (
-        "dss_apply" + ("" if mode == "add" else "__" + mode) + suffix(dtype)
+        "dss_apply" + ("" if mode == "add" else "__" + mode) + suffix(dtype) + kept
     )  # the node kernel's key
     return wp.kernel(dss_apply, enable_backward=False, module="unique")

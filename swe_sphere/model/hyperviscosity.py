@@ -293,13 +293,15 @@ class Hyperviscosity:
             return m.topology.by_element(
                 self.hv_L2,
                 lambda rows, copies, ghosts, np_: hyperviscosity.dss_apply_elements(
-                    copies, ghosts, np_, mode, self.dtype
+                    copies, ghosts, np_, mode, self.dtype, out.dtype
                 ),
                 last,
             )
         return m.topology.gathering(
             self.hv_L2 if m.operators.per_element else self.hv_L,
-            lambda rows, copies, ghosts: hyperviscosity.dss_apply(copies, ghosts=ghosts, mode=mode, dtype=self.dtype),
+            lambda rows, copies, ghosts: hyperviscosity.dss_apply(
+                copies, ghosts=ghosts, mode=mode, dtype=self.dtype, state=out.dtype
+            ),
             last,
         )
 

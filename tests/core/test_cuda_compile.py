@@ -178,14 +178,16 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
         u, v, h = flow.initial(grid.lat, grid.lon)
         make_stepper("ssprk3", model, 720.0).step(model.new_state(u, v, h, masses=h[None]))
     # the float32 state ("float32_state"): its conversions, the tendency of the departed state and
-    # the stages' float32 combinations, both layouts, compensated and not
+    # the stages' float32 combinations, both layouts, compensated and not; not compensated, the
+    # state kept between steps (``model.held``) and the ∇⁴ on it
     for per_element in (False, True):
         for compensated in (True, False):
             model = ShallowWater.from_scene(
                 tc5, grid, per_element=per_element, precision="float32_state", compensated=compensated
             )
-            x = model.new_state(*np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
+            x = model.held.new(np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
             make_stepper("rk4", model, tc5.dt).step(x)
+            model.held.float64(x)  # the diagnostics' float64 copy of a kept state
     ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 

@@ -180,7 +180,11 @@ def combination(pattern: str, state=f64):
     (``butcher.constant_keeping``: RK4's 1/3, 2/3 sum to 1 exactly) the float32 sum does too,
     s0 = s1 = C giving 1·C + 0 whatever fl₃₂(c₀) is. Rounded alone, fl₃₂(1/3) + fl₃₂(2/3) =
     1 + 3e-8: RK4 biased each step's state by a quarter of a float32 spacing (TC2 ne4 np4 a day,
-    mass 3.2e-7 off without the fixer)."""
+    mass 3.2e-7 off without the fixer).
+
+    The pattern "rkl" (terms a, a, k): an RKL1 stage, ``rkl_stage``, in float64 for either state."""
+    if pattern == "rkl":
+        return rkl_stage()
     if not 1 <= len(pattern) <= 3 or set(pattern) - {"a", "k"} or pattern.count("k") > 1 or pattern.count("a") > 2:
         raise ValueError(f"a combination is 1 to 3 terms of at most two arrays 'a' and one 'k' (got {pattern!r})")
     if state is not f64:
@@ -212,6 +216,22 @@ def combination(pattern: str, state=f64):
 
     combine.__qualname__ = combine.__name__ = f"combine_{pattern}"
     return wp.func(combine)
+
+
+@functools.cache
+def rkl_stage():
+    """A ``wp.func`` (c, k, s0, s1, r, p) → t + c₁·(s1 − t), t = c₀·s0 + c₂·k at [r, p] (k and
+    the arrays as ``combination``'s), in float64 (k's type; a float32 state's values read into
+    it): RKL1's stage μ·t + ν·Y_{j−2} with μ = 1 − ν (``model.hyperviscosity.Hyperviscosity.rkl1``)
+    written as t + ν·(Y_{j−2} − t), c = (1, ν, coef), s0 = Y_{j−1}, s1 = Y_{j−2}: the ∇⁴'s
+    ``dss_apply`` "rkl" arithmetic, a constant kept to the bit, no bias in the mass."""
+
+    def rkl(c: wp.vec3d, k: Any, s0: wp.array2d(dtype=Any), s1: wp.array2d(dtype=Any), r: int, p: int):
+        t = c[0] * type(k)(s0[r, p]) + c[2] * k
+        return t + c[1] * (type(k)(s1[r, p]) - t)
+
+    rkl.__qualname__ = rkl.__name__ = "combine_rkl"
+    return wp.func(rkl)
 
 
 def _combination_state(pattern: str, state):

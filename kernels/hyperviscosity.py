@@ -161,7 +161,7 @@ laplacian_metric = wp.kernel(_laplacian_metric, enable_backward=False, module="u
 
 @functools.cache
 def _applied(mode: str):
-    """A ``wp.func`` (y, east, north, coef, out, src, prev, mu, nu, p): ``dss_apply``'s update at
+    """A ``wp.func`` (y, east, north, coef, out, src, prev, nu, p): ``dss_apply``'s update at
     node p from Y₂ there (y: the 4 values, a vec4d) or at row p from its rows (y: a (4, np)
     matrix, east and north row views), the same sums lane by lane, in float64 (a float32
     ∇⁴'s east and north converted as they are read). ValueError for another mode."""
@@ -177,7 +177,6 @@ def _applied(mode: str):
         p: int,
         z: Any,
         coef: f64,
-        mu: f64,
         nu: f64,
     ):
         # in float64 (z's type), stored in the state's: float64, or a float32 state kept between
@@ -187,8 +186,8 @@ def _applied(mode: str):
             out[r, p] = type(o)(type(z)(o) + coef * z)
         else:
             t = type(z)(src[r, p]) + coef * z
-            if wp.static(RKL):
-                t = mu * t + nu * type(z)(prev[r, p])
+            if wp.static(RKL):  # μ·t + ν·prev as t + ν·(prev − t), μ = 1 − ν (``Hyperviscosity.rkl1``)
+                t = t + nu * (type(z)(prev[r, p]) - t)
             out[r, p] = type(o)(t)
 
     update.__qualname__ = update.__name__ = f"dss_apply_update_{mode}"
@@ -202,7 +201,6 @@ def _applied(mode: str):
         out: wp.array2d(dtype=Any),
         src: wp.array2d(dtype=Any),
         prev: wp.array2d(dtype=Any),
-        mu: f64,
         nu: f64,
         p: int,
     ):
@@ -217,9 +215,9 @@ def _applied(mode: str):
             + times(y[1], type(y[1])(north[1, p]))
             + times(y[2], type(y[2])(north[2, p]))
         )
-        put(out, src, prev, 0, p, ye, coef, mu, nu)
-        put(out, src, prev, 1, p, yn, coef, mu, nu)
-        put(out, src, prev, 2, p, y[3], coef, mu, nu)
+        put(out, src, prev, 0, p, ye, coef, nu)
+        put(out, src, prev, 1, p, yn, coef, nu)
+        put(out, src, prev, 2, p, y[3], coef, nu)
 
     applied.__qualname__ = applied.__name__ = f"dss_applied_{mode}"
     return wp.func(applied)
@@ -231,12 +229,11 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64, s
     4 rows: the weak-form Y₂ of ``laplacian_element``/``laplacian_node``), its Cartesian wind
     taken back to (east, north) components, by ``mode``: "add", out += coef·Y₂ (out may be the
     state the Laplacians came from: only L is read at other nodes); "euler", out = src +
-    coef·Y₂; "rkl", out = μ·(src + coef·Y₂) + ν·prev, an RKL1 stage (``Hyperviscosity.rkl1``)
-    summed as a forward-Euler step into a copy of src and ``blas.axpby`` after it were (the
-    same bits, without the copy and the pass). src is the state the Laplacians came from; out
-    may alias src and prev (each read at its own node). Arguments: L (4, N),
-    d (``dss.Copies``), coef, f (``Frame``), out (3, N), src (3, N; read by "euler" and "rkl"),
-    prev (3, N), mu, nu (read by "rkl"), block, offset. ValueError for another mode.
+    coef·Y₂; "rkl", out = t + ν·(prev − t), t = src + coef·Y₂, an RKL1 stage μ·t + ν·prev with
+    μ = 1 − ν (``Hyperviscosity.rkl1``: unbiased, where μ·t + ν·prev rounded h's mass up). src
+    is the state the Laplacians came from; out may alias src and prev (each read at its own
+    node). Arguments: L (4, N), d (``dss.Copies``), coef, f (``Frame``), out (3, N), src (3, N; read by "euler" and "rkl"),
+    prev (3, N), nu (read by "rkl"), block, offset. ValueError for another mode.
     Dim N/block (as ``dss.dss_rows``). ``dtype``: the ∇⁴'s float type, of L and f; the sums
     (``dss.gather``) and the update float64; ``state`` the state's float type (out, src, prev:
     float64, or a float32 state kept between steps, ``model.held``, the update rounded once).
@@ -252,14 +249,13 @@ def dss_apply(copies: int, ghosts: bool = False, mode: str = "add", dtype=f64, s
         out: wp.array2d(dtype=state),
         src: wp.array2d(dtype=state),
         prev: wp.array2d(dtype=state),
-        mu: f64,
         nu: f64,
         block: int,
         offset: int,
     ):
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
-            applied(sum_copies(L, d, p), f.east, f.north, coef, out, src, prev, mu, nu, p)
+            applied(sum_copies(L, d, p), f.east, f.north, coef, out, src, prev, nu, p)
 
     kept = "" if state is f64 else "__state" + suffix(state)  # a float32 state kept between steps (``model.held``)
     dss_apply.__qualname__ = "dss_apply" + ("" if mode == "add" else "__" + mode) + suffix(dtype) + kept  # the key
@@ -271,7 +267,7 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
     """``dss_apply`` by element on GLL rows (``dss.gather_rows``, the node gather's bits), for
     the CPU (``Topology.by_element``): arguments Lr, L (L as rows and as it is), d
     (``dss.Copies``), g (``dss.Edges``), wr, rsr (spheremp's first N and rspheremp as rows),
-    coef, f (``frame_type`` of rows), out, src, prev as rows, mu, nu, offset; dim nelem.
+    coef, f (``frame_type`` of rows), out, src, prev as rows, nu, offset; dim nelem.
     ``dtype`` as ``dss_apply``'s (of Lr, L and f; the rest float64)."""
     NP = int(np_)
     vec = row_type(NP)
@@ -291,14 +287,13 @@ def dss_apply_elements(copies: int, ghosts: bool, np_: int, mode: str = "add", d
         out: wp.array2d(dtype=row_type(NP, state)),
         src: wp.array2d(dtype=row_type(NP, state)),
         prev: wp.array2d(dtype=row_type(NP, state)),
-        mu: f64,
         nu: f64,
         offset: int,
     ):
         e = wp.tid() + offset
         for j in range(NP):
             y = rows_dss(Lr, L, d, g, wr, rsr, e, j)
-            applied(y, f.east, f.north, coef, out, src, prev, mu, nu, e * NP + j)
+            applied(y, f.east, f.north, coef, out, src, prev, nu, e * NP + j)
 
     kept = "" if state is f64 else "__state" + suffix(state)
     dss_apply.__qualname__ = (

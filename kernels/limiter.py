@@ -13,6 +13,7 @@ Dim nelem; ``offset`` counts elements.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -140,7 +141,7 @@ def limited(np_: int):
 
 
 @functools.cache
-def limit_stage(weighted: bool, first: int = 0, np_: int = 4):
+def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False):
     """The kernel limiting an explicit stage's element-local values before their DSS (HOMME's
     ``euler_step``: the limiter on Qtens, then the DSS): the stage's update out = a₀·s₀ + a₁·s₁ +
     a₂·F (``ShallowWater.rhs_update``), F = M⁻¹DSS(the tendency), taken element by element as
@@ -156,10 +157,22 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4):
     TC5 ne16 stage with one tracer, one thread, against the node-by-node loops over the arrays
     it replaced), the same arithmetic node by node. Arguments: a (vec3), s₀, s₁ (rows, ·; a₁ = 0:
     s₁ unread but any), tend, mass, spheremp, bounds (2K, nelem: ``neighbour_bounds``), iterations,
-    tol, out (K, ·), offset; all but a, bounds, iterations and tol as rows."""
-    W, F, NP = bool(weighted), int(first), int(np_)
+    tol, out (K, ·), offset; all but a, bounds, iterations and tol as rows. ``rkl``: v = t +
+    a₁·(s₁ − t), t = a₀·s₀ + a₂·F_e, an RKL1 stage as ``kernels.dss.rkl_stage`` forms it (the
+    ∇⁴'s, ``first`` = 2)."""
+    W, F, NP, RKL = bool(weighted), int(first), int(np_), bool(rkl)
     vec, mat = row_derivatives(NP)[:2]
     limit = limited(NP)
+
+    def combined(a: wp.vec3d, x0: Any, x1: Any, f: Any):
+        # the stage's value from s₀'s, s₁'s and F's at the nodes of a row
+        if wp.static(RKL):
+            t = a[0] * x0 + a[2] * f
+            return t + a[1] * (x1 - t)
+        return a[0] * x0 + a[1] * x1 + a[2] * f
+
+    combined.__qualname__ = combined.__name__ = "limit_stage_value" + ("__rkl" if RKL else "")
+    combined = wp.func(combined)
 
     def kernel(
         a: wp.vec3d,
@@ -184,7 +197,7 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4):
             r = vec(f64(1.0))
             if wp.static(W):
                 r = wp.cw_div(r, mass[q])
-            h = a[0] * s0[2, q] + a[1] * s1[2, q] + a[2] * wp.cw_mul(tend[wp.static(2 - F), q], r)
+            h = combined(a, s0[2, q], s1[2, q], wp.cw_mul(tend[wp.static(2 - F), q], r))
             H[j] = h
             C[j] = wp.cw_mul(spheremp[q], h)
             R[j] = r
@@ -192,11 +205,13 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4):
             Q = mat()
             for j in range(NP):
                 q = base + j
-                v = a[0] * s0[3 + k, q] + a[1] * s1[3 + k, q] + a[2] * wp.cw_mul(tend[wp.static(3 - F) + k, q], R[j])
+                v = combined(a, s0[3 + k, q], s1[3 + k, q], wp.cw_mul(tend[wp.static(3 - F) + k, q], R[j]))
                 Q[j] = wp.cw_div(v, H[j])
             Q = limit(Q, C, bounds[2 * k, e], bounds[2 * k + 1, e], iterations, tol)
             for j in range(NP):
                 out[k, base + j] = wp.cw_mul(Q[j], H[j])
 
-    kernel.__qualname__ = kernel.__name__ = "limit_stage" + ("__mass" if W else "") + (f"__from{F}" if F else "")
+    kernel.__qualname__ = kernel.__name__ = (
+        "limit_stage" + ("__mass" if W else "") + (f"__from{F}" if F else "") + ("__rkl" if RKL else "")
+    )
     return wp.kernel(kernel, enable_backward=False, module="unique")

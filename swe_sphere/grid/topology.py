@@ -376,17 +376,18 @@ class Topology(RankReductions):
         launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.backend, threads=self.threads)
         return [*self._exchange(x), launch]
 
-    def dss_update(self, x: wp.array2d, updates, weighted: bool = True) -> list:
+    def dss_update(self, x: wp.array2d, updates, weighted: bool = True, rkl: bool = False) -> list:
         """Launches for the weighted DSS k of x (rows, N) (``weighted`` False: the unweighted
         one, of a weak form), not stored but used by
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the
         terms (a, src), src an array of x's shape or None for k
         (``kernels.dss.dss_update``: summed left to right, the bits of
         ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x. The terms
-        and outputs float64, or all float32 (the float32 state's stages)."""
+        and outputs float64, or all float32 (the float32 state's stages). ``rkl``: each update's
+        terms (1, s0), (ν, s1), (coef, k) formed as an RKL1 stage (``kernels.dss.rkl_stage``)."""
         patterns, coefs, arrays = [], [], []
         for out, terms in updates:
-            patterns.append("".join("k" if src is None else "a" for _, src in terms))
+            patterns.append("rkl" if rkl else "".join("k" if src is None else "a" for _, src in terms))
             coefs += [a for a, _ in terms] + [0.0] * (3 - len(terms))
             srcs = [src for _, src in terms if src is not None]
             arrays += [*(srcs + [out] * (2 - len(srcs))), out]  # unused slots: any array of the shape

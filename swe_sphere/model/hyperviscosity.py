@@ -114,14 +114,12 @@ class Hyperviscosity:
             tuple(wp.zeros((rows, N), dtype=f64, device=device) for _ in range(3)) if m.tracers else None
         )
 
-    def build(
-        self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weights=(1.0, 0.0), depth=None
-    ):
+    def build(self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weight=0.0, depth=None):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
         (None: the model's); out = x if None. ``mode`` "euler": out = x + coef·B x instead;
-        "rkl": out = μ·(x + coef·B x) + ν·prev, (μ, ν) = ``weights``, an RKL1 stage (``rkl1``; out may alias x or
-        prev), each in the last pass (``kernels.hyperviscosity.dss_apply``). Three passes on the per-element
+        "rkl": out = t + ν·(prev − t), t = x + coef·B x, ν = ``weight``, an RKL1 stage (``rkl1``; out may alias x
+        or prev), each in the last pass (``kernels.hyperviscosity.dss_apply``). Three passes on the per-element
         layout (the second weak Laplacian sums the first DSS itself), six on the
         per-node one (a flux pass before each weak Laplacian, the first forming the
         Cartesian wind as it reads it, and the first DSS), and the divergence δ and
@@ -149,7 +147,7 @@ class Hyperviscosity:
         laplacian = self._element_laplacian if m.operators.per_element else self._node_laplacian
         first, second = (laplacian(x, c, divergent, swap, s, depth) for s in (False, True))
         passes = [*launches, *first, *second]
-        return [*passes, *self._dss_apply(x, coef, out, mode, prev, weights)]
+        return [*passes, *self._dss_apply(x, coef, out, mode, prev, weight)]
 
     def _lanes(self) -> int:
         """W for ``laplacian_across`` (``across_elements``) where it applies: the per-element
@@ -278,17 +276,17 @@ class Hyperviscosity:
         kernel = hyperviscosity_node.laplacian_node(second, divergent, m.operators.static_np, self.dtype)
         return [*passes, m.launches.nodes(kernel, N, args)]
 
-    def _dss_apply(self, x, coef: float, out, mode: str, prev, weights) -> list:
+    def _dss_apply(self, x, coef: float, out, mode: str, prev, weight: float) -> list:
         """``build``'s last pass's launches: the second Laplacian's weak form (L2 on the
         per-element layout, L on the per-node one) summed over its copies (the DSS) and applied,
-        out += coef·B x, or as ``mode`` says ("euler", "rkl" with ``prev`` and ``weights``;
+        out += coef·B x, or as ``mode`` says ("euler", "rkl" with ``prev`` and ``weight``, ν;
         ``kernels.hyperviscosity.dss_apply``), on the CPU's element rows where the topology has
         them (``Topology.by_element``)."""
         m = self.model
         by_element = m.operators.per_element and m.topology.edges is not None
         rows = m.operators.as_rows if by_element else (lambda a: a)
         last = [f64(coef), self._frame("east", "north", rows=by_element)]
-        last += [rows(out), rows(x), rows(out if prev is None else prev), *map(f64, weights)]
+        last += [rows(out), rows(x), rows(out if prev is None else prev), f64(weight)]
         if by_element:  # the CPU's element rows (``Topology.by_element``)
             return m.topology.by_element(
                 self.hv_L2,
@@ -458,8 +456,9 @@ class Hyperviscosity:
         (the tensor's where the ∇⁴ has one) of Y₁ = M⁻¹DSS(L₁), L₁ = ν_s·the weak Laplacian of
         hq + q·hs from ``src`` (``kernels.tracers.tracer_laplacian``;
         HOMME ``biharmonic_wk_scalar``), then by ``mode`` with the coefficients ``c``: "add", out +=
-        c₀·Y₂ (out = src); "euler", out = src + c₀·Y₂; "rkl", out = c₀·src + c₁·prev + c₂·Y₂ (an
-        RKL1 stage, c = (μ, ν, μ·coef)), as the second DSS sums (``Topology.dss_update``), or with
+        c₀·Y₂ (out = src); "euler", out = src + c₀·Y₂; "rkl", out = t + c₁·(prev − t), t = src +
+        c₀·Y₂ (an RKL1 stage, c = (coef, ν), the depth's form: ``rkl1``), as the second DSS sums
+        (``Topology.dss_update``), or with
         the model's limiter, limited before it (``limiter.TracerLimiter.stage``: q against h's own
         element-local values, h's Laplacians computed beside the tracers' for them, so that q = 1
         stays 1; h itself is left to the depth's ∇⁴). out may alias src and
@@ -468,8 +467,8 @@ class Hyperviscosity:
         ops, (L1, Y1, L2) = m.operators, self._tracer_work
         second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
         dvv, rows, np_ = m.tendency_arrays.dvv_rows, ops.as_rows, m.grid.np
-        if mode == "rkl":
-            terms = ((c[0], src), (c[1], prev), (c[2], None))
+        if mode == "rkl":  # the terms of t + c₁·(prev − t), t = 1·src + c₀·Y₂ (``dss.rkl_stage``)
+            terms = ((1.0, src), (c[1], prev), (c[0], None))
         else:
             terms = ((1.0, out if mode == "add" else src), (c[0], None))
         launches = [
@@ -483,9 +482,9 @@ class Hyperviscosity:
             ),
         ]
         if m.limiter is not None:  # HOMME limits the tracers' biharmonic with their transport (euler_step)
-            return [*launches, *m.limiter.stage(Update(out, terms), L2, True, first=2)]
+            return [*launches, *m.limiter.stage(Update(out, terms), L2, True, first=2, rkl=mode == "rkl")]
         sliced = tuple((a, None if a_src is None else a_src[3:]) for a, a_src in terms)
-        return [*launches, *m.topology.dss_update(L2, [(out[3:], sliced)], weighted=False)]
+        return [*launches, *m.topology.dss_update(L2, [(out[3:], sliced)], weighted=False, rkl=mode == "rkl")]
 
     def apply(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
@@ -527,7 +526,10 @@ class Hyperviscosity:
         dx/dt = M(x) = −B x over dt (s), in place on the state x (3, N): Y_0 = x, Y_1 = E(Y_0),
         Y_j = μ_j E(Y_{j−1}) + ν_j Y_{j−2}, μ_j = (2j − 1)/j, ν_j = −(j − 1)/j,
         with E one forward-Euler step of w₁Δt, w₁ = 2/(s² + s); first order, stable for
-        ν dt λ ≤ s² + s. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
+        ν dt λ ≤ s² + s. Since μ_j + ν_j = 1 each stage is formed as t + ν_j (Y_{j−2} − t), t =
+        E(Y_{j−1}): μ_j·t + ν_j·Y_{j−2} rounded fl(μ_j)·h and fl(ν_j)·h alike at nearly every
+        node (fl(5/3) + fl(−2/3) ≠ 1), +2.5e-16 of the mass an application (Galewsky ne8 np8,
+        +1.5e-14 a day); the difference form rounds without a bias. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
         convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
         (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
         or x at the last stage (each read at its own node only). ``tracers``: each stage preceded by
@@ -537,20 +539,20 @@ class Hyperviscosity:
             self._rkl_buffers[x.shape, x.dtype] = wp.zeros_like(x)
         coef = -dt * 2.0 / (s * s + s)
 
-        def stage(src, out, prev, mode, mu=1.0, nu=0.0):
+        def stage(src, out, prev, mode, nu=0.0):
             key = ("hv", mode, src.ptr, out.ptr, prev.ptr)
             if (
                 tracers
             ):  # the tracers' stage before the depth's (``apply``), its coefficients as ``build_tracers`` takes them
                 build = lambda c: self.build_tracers(src, out, prev, mode, c)  # noqa: E731
-                c = (coef,) if mode == "euler" else (mu, nu, mu * coef)
+                c = (coef,) if mode == "euler" else (coef, nu)
                 m.launches.replay(("hv_tracers", *key[1:]), (src, out, prev), build, c)
-            build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weights=c[1:])  # noqa: E731
-            m.launches.replay(key, (src, out, prev), build, (coef, mu, nu))
+            build = lambda c: self.build(src, c[0], out, mode=mode, prev=prev, weight=c[1] if mode == "rkl" else 0.0)  # noqa: E731
+            m.launches.replay(key, (src, out, prev), build, (coef, nu) if mode == "rkl" else (coef,))
 
         prev, cur = x, self._rkl_buffers[x.shape, x.dtype]
         stage(x, cur, x, "euler")  # Y_1
         for j in range(2, s + 1):
             out = x if j == s else prev  # Y_{j−2} is not needed after this stage
-            stage(cur, out, prev, "rkl", (2.0 * j - 1.0) / j, -(j - 1.0) / j)
+            stage(cur, out, prev, "rkl", -(j - 1.0) / j)
             prev, cur = cur, out

@@ -77,19 +77,20 @@ class TracerLimiter:
             rows(self.work),
         ]
 
-    def stage(self, update, tend, weighted: bool, first: int = 0) -> list:
+    def stage(self, update, tend, weighted: bool, first: int = 0, rkl: bool = False) -> list:
         """Launches of ``update``'s tracer rows (an ``Update`` out = Σ a·src + a_F·F of at most two
         arrays and F once, F from the element-local ``tend``, spheremp·F where ``weighted``, its
         rows the state's from ``first``: 0, the tendency; 2, the ∇⁴'s of h and the tracers): its
         element-local values limited (``kernels.limiter.limit_stage``) and assembled by the
         mass-weighted DSS into out[3:]. The caller runs the first launch before any other writes
-        the update's arrays' rows it reads, and the others after it."""
+        the update's arrays' rows it reads, and the others after it. ``rkl``: the terms (1, s₀),
+        (ν, s₁), (coef, F) formed as an RKL1 stage (``kernels.dss.rkl_stage``'s arithmetic)."""
         m = self.model
         arrays = [(a, src) for a, src in update.terms if src is not None]
         a = [a for a, _ in arrays] + [0.0] * (2 - len(arrays))
         srcs = [src for _, src in arrays] + [update.out] * (2 - len(arrays))
         flux = [a for a, src in update.terms if src is None]
-        kernel = limiter.limit_stage(weighted, first, m.grid.np)
+        kernel = limiter.limit_stage(weighted, first, m.grid.np, rkl)
         rows = m.operators.as_rows
         args = [wp.vec3d(*a, *flux), *map(rows, (*srcs, tend)), *self._limits()]
         return [m.launches.elements(kernel, args), *m.topology.dss(self.work, True, update.out[3:])]

@@ -529,8 +529,8 @@ class Hyperviscosity:
         ν dt λ ≤ s² + s. Since μ_j + ν_j = 1 each stage is formed as t + ν_j (Y_{j−2} − t), t =
         E(Y_{j−1}): μ_j·t + ν_j·Y_{j−2} rounded fl(μ_j)·h and fl(ν_j)·h alike at nearly every
         node (fl(5/3) + fl(−2/3) ≠ 1), +2.5e-16 of the mass an application (Galewsky ne8 np8,
-        +1.5e-14 a day); the difference form rounds without a bias. ``apply``'s super-step with s = ``stages(dt)``; any s ≥ 2 here (a
-        convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
+        +1.5e-14 a day); the difference form rounds without a bias. ``apply``'s super-step with
+        s = ``stages(dt)``; any s ≥ 2 here (a convergence study's). Each stage is one ∇⁴ evaluation whose last pass forms Y_j
         (``build``'s "euler" and "rkl" modes), in x and one work array: Y_j overwrites Y_{j−2},
         or x at the last stage (each read at its own node only). ``tracers``: each stage preceded by
         the tracers' (``apply``'s)."""

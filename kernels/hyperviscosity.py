@@ -61,7 +61,7 @@ from typing import Any
 
 import warp as wp
 
-from .dss import Copies, Edges, gather, gather_rows
+from .dss import Copies, Edges, gather, gather_rows, rkl_weighted
 from .operators import CPU_FAST, row_type, suffix, times
 
 f64 = wp.float64
@@ -186,8 +186,8 @@ def _applied(mode: str):
             out[r, p] = type(o)(type(z)(o) + coef * z)
         else:
             t = type(z)(src[r, p]) + coef * z
-            if wp.static(RKL):  # μ·t + ν·prev as t + ν·(prev − t), μ = 1 − ν (``Hyperviscosity.rkl1``)
-                t = t + nu * (type(z)(prev[r, p]) - t)
+            if wp.static(RKL):
+                t = rkl_weighted(t, type(z)(prev[r, p]), nu)
             out[r, p] = type(o)(t)
 
     update.__qualname__ = update.__name__ = f"dss_apply_update_{mode}"

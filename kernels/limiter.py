@@ -17,7 +17,7 @@ from typing import Any
 
 import warp as wp
 
-from .dss import Copies, copy_value
+from .dss import Copies, copy_value, rkl_weighted
 from .operators import row_derivatives
 
 f64 = wp.float64
@@ -167,8 +167,7 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
     def combined(a: wp.vec3d, x0: Any, x1: Any, f: Any):
         # the stage's value from s₀'s, s₁'s and F's at the nodes of a row
         if wp.static(RKL):
-            t = a[0] * x0 + a[2] * f
-            return t + a[1] * (x1 - t)
+            return rkl_weighted(a[0] * x0 + a[2] * f, x1, a[1])
         return a[0] * x0 + a[1] * x1 + a[2] * f
 
     combined.__qualname__ = combined.__name__ = "limit_stage_value" + ("__rkl" if RKL else "")

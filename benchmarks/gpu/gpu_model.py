@@ -113,32 +113,25 @@ def count(args, tally):
         )
         stepper = make_stepper(name, model, scene.dt)
         use_krylov(stepper, "kernels")  # the Krylov vector work as on CUDA (on a CPU device it runs in numpy)
-        x = model.new_state(*x0)
-        for _ in range(args.warmup):
-            stepper.step(x)
-        with tally.counting() as t:
-            for _ in range(args.steps):
-                stepper.step(x)
-        s = args.steps
-        out[name] = (t.total_launches / s, t.total_bytes / N / s, t.syncs / s, t.launches.copy(), t.bytes.copy())
+        out[name] = per_step(args, tally, stepper, model.new_state(*x0), N)
         if args.precision == "float32_state":  # and the float32 state kept between steps (``model.held``)
             _, _, (_, _, x0), model = tc5(
                 args.ne, stepper=name, precision=args.precision, compensated=False, **CUDA_ON_CPU
             )
-            stepper, x = make_stepper(name, model, scene.dt), model.held.new(x0)
-            for _ in range(args.warmup):
-                stepper.step(x)
-            with tally.counting() as t:
-                for _ in range(args.steps):
-                    stepper.step(x)
-            out[f"{name}:kept"] = (
-                t.total_launches / s,
-                t.total_bytes / N / s,
-                t.syncs / s,
-                t.launches.copy(),
-                t.bytes.copy(),
-            )
+            out[f"{name}:kept"] = per_step(args, tally, make_stepper(name, model, scene.dt), model.held.new(x0), N)
     return out, N
+
+
+def per_step(args, tally, stepper, x, N) -> tuple:
+    """(launches, B/pt, syncs, launches by kernel, bytes by kernel) a step of ``stepper`` on the
+    state x (N points), counted over ``args.steps`` steps after ``args.warmup``."""
+    for _ in range(args.warmup):
+        stepper.step(x)
+    with tally.counting() as t:
+        for _ in range(args.steps):
+            stepper.step(x)
+    s = args.steps
+    return (t.total_launches / s, t.total_bytes / N / s, t.syncs / s, t.launches.copy(), t.bytes.copy())
 
 
 def steppers(precision: str) -> list[str]:

@@ -87,17 +87,21 @@ def neighbour_bounds(tracers: int, copies: int, ghosts: bool):
 
 @functools.cache
 def limited(np_: int):
-    """A ``wp.func`` (Q, C, qmin, qmax, iterations, tol) → Q limited: Q (np × np, Q[j, i] q at
-    GLL node (i, j) of an element, held in registers) moved into [qmin, qmax] keeping Σ C Q (C
-    the nodes' mass weights spheremp·h): at most ``iterations`` passes of clipping and spreading,
-    done when the mass clipped is ≤ ``tol`` of the element's; that last is spread too (a node
-    then past its bound by that share at most: HOMME drops it, a mass loss of one sign where a
-    bound is met over wide areas, 2.8e-13 in 12 days of the transport test). The nodes in
-    memory order, as a loop over them would take them."""
+    """A ``wp.func`` (Q, C, qmin, qmax, iterations) → Q limited: Q (np × np, Q[j, i] q at GLL
+    node (i, j) of an element, held in registers) moved into [qmin, qmax] keeping Σ C Q (C the
+    nodes' mass weights spheremp·h): passes of clipping and spreading until one clips nothing
+    (HOMME stops at a tolerance, 1e-14 of the element's mass here before: the last spread then
+    left a node past its bound by up to that mass over the weight it went to, 4e-12 of the
+    correlated tracer's range in the transport test at ne10). A pass after the first clips on one
+    side only (a spread moves values away from the other bound), and a node clipped to a bound
+    leaves the spread's nodes for good, so np² + 1 ``iterations`` reach a pass that clips
+    nothing: every value within the bounds, the mass kept to the spreads' rounding. Past
+    ``iterations`` (fewer given) the last spread is kept: the mass before the bounds. The nodes
+    in memory order, as a loop over them would take them."""
     NP = int(np_)
     mat = row_derivatives(NP)[1]
 
-    def limit(Q: mat, C: mat, qmin: f64, qmax: f64, iterations: int, tol: f64):
+    def limit(Q: mat, C: mat, qmin: f64, qmax: f64, iterations: int):
         mass = f64(0.0)
         total = f64(0.0)
         for j in range(NP):
@@ -119,21 +123,24 @@ def limited(np_: int):
                     elif q < lo:
                         extra -= (lo - q) * C[j, i]
                         Q[j, i] = lo
-            if wp.abs(extra) <= tol * wp.abs(mass):
-                it = iterations  # the last spread, of at most tol of the mass: kept, not dropped (a bias else)
-            if extra != f64(0.0):  # nothing clipped (most elements): nothing to spread, done
+            if extra == f64(0.0):  # nothing clipped (most elements at the first pass): within the bounds, done
+                it = iterations
+            else:
                 room = f64(0.0)  # the weight of the nodes that can take it
                 for j in range(NP):
                     for i in range(NP):
                         q = Q[j, i]
                         if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
                             room += C[j, i]
-                if room > f64(0.0):
-                    for j in range(NP):
-                        for i in range(NP):
-                            q = Q[j, i]
-                            if (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
-                                Q[j, i] = q + extra / room
+                every = room == f64(0.0)  # each node on the bound: the mean on it to rounding, extra its rounding
+                if every:  # spread over them all and stop, keeping the mass: a few ε of q past the bound
+                    room = total
+                    it = iterations
+                for j in range(NP):
+                    for i in range(NP):
+                        q = Q[j, i]
+                        if every or (extra > f64(0.0) and q < hi) or (extra < f64(0.0) and q > lo):
+                            Q[j, i] = q + extra / room
         return Q
 
     limit.__qualname__ = limit.__name__ = f"limited_np{NP}"
@@ -156,8 +163,8 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
     (``operators.row_vectors``: the CPU's SIMD rows, the limiting in registers; 0.37 → 0.09 ms a
     TC5 ne16 stage with one tracer, one thread, against the node-by-node loops over the arrays
     it replaced), the same arithmetic node by node. Arguments: a (vec3), s₀, s₁ (rows, ·; a₁ = 0:
-    s₁ unread but any), tend, mass, spheremp, bounds (2K, nelem: ``neighbour_bounds``), iterations,
-    tol, out (K, ·), offset; all but a, bounds, iterations and tol as rows. ``rkl``: v = t +
+    s₁ unread but any), tend, mass, spheremp, bounds (2K, nelem: ``neighbour_bounds``), iterations
+    (``limited``'s), out (K, ·), offset; all but a, bounds and iterations as rows. ``rkl``: v = t +
     a₁·(s₁ − t), t = a₀·s₀ + a₂·F_e, an RKL1 stage as ``kernels.dss.rkl_stage`` forms it (the
     ∇⁴'s, ``first`` = 2)."""
     W, F, NP, RKL = bool(weighted), int(first), int(np_), bool(rkl)
@@ -182,7 +189,6 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
         spheremp: wp.array(dtype=vec),
         bounds: wp.array2d(dtype=f64),
         iterations: int,
-        tol: f64,
         out: wp.array2d(dtype=vec),
         offset: int,
     ):
@@ -206,7 +212,7 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
                 q = base + j
                 v = combined(a, s0[3 + k, q], s1[3 + k, q], wp.cw_mul(tend[wp.static(3 - F) + k, q], R[j]))
                 Q[j] = wp.cw_div(v, H[j])
-            Q = limit(Q, C, bounds[2 * k, e], bounds[2 * k + 1, e], iterations, tol)
+            Q = limit(Q, C, bounds[2 * k, e], bounds[2 * k + 1, e], iterations)
             for j in range(NP):
                 out[k, base + j] = wp.cw_mul(Q[j], H[j])
 

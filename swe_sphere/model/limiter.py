@@ -24,8 +24,8 @@ class TracerLimiter:
     tracers' ∇⁴ limits its own (``model.hyperviscosity.Hyperviscosity.build_tracers``), so a
     step's end holds nothing more to limit (a pass over it there changed the transport test's
     extremes by round-off alone: ne4 np4, 1.5 days). Element-local, the neighbours' bounds exchanged as a min and a max: the same bits on any
-    ranks. Mass is kept to round-off, the bounds met to ``tol`` of an element's mass after at most
-    np² − 1 passes (HOMME's).
+    ranks. Mass is kept to round-off and the bounds met exactly: the passes go on until one clips
+    nothing, at most np² + 1 (``kernels.limiter.limited``; HOMME's np² − 1 stop at a tolerance).
 
     The bounds can be met only where an element's mean lies within them, which a stage that is a
     forward-Euler step of the element-local update ensures while no node's outflow over the step
@@ -34,8 +34,6 @@ class TracerLimiter:
     the transport test within its initial range to round-off at the study's Δt; SSP-RK3's are of
     Δt, and there an element's mean may leave its bounds (the limiter then keeps the mass: 4e-9
     of the range on ne4 np4 at 1800 s, round-off at 900 s; tests/model/test_tracers.py)."""
-
-    tol = 1e-14
 
     def __init__(self, model):
         self.model = m = model
@@ -65,15 +63,14 @@ class TracerLimiter:
 
     def _limits(self) -> list:
         """The limiting kernels' common arguments after the sources: mass, spheremp (as rows), the
-        bounds, the passes, ``tol``, the output (as rows)."""
+        bounds, the passes (np² + 1: enough to reach one that clips nothing), the output (as rows)."""
         rows = self.model.operators.as_rows
         m = self.model
         return [
             rows(m.tendency_arrays.mass),
             rows(m.spheremp[: m.N]),
             self.near,
-            self.npp - 1,
-            f64(self.tol),
+            self.npp + 1,
             rows(self.work),
         ]
 

@@ -165,6 +165,22 @@ def state_suffix(state) -> str:
     return "" if state is f64 else "__state" + suffix(state)
 
 
+def assembled_suffix(assembled: int) -> str:
+    """What a DSS update's key adds for its last ``assembled`` rows written as the DSS itself."""
+    return f"__assembled{assembled}" if assembled else ""
+
+
+def _assembled(assembled: int, rows: int, patterns: tuple) -> int:
+    """``dss_update``'s ``assembled`` checked: ValueError unless one or two ``patterns``, and for
+    A > 0 one, A ≤ ``rows``."""
+    A = int(assembled)
+    if not 1 <= len(patterns) <= 2:
+        raise ValueError(f"one or two combinations (got {len(patterns)})")
+    if A and (len(patterns) != 1 or not 0 < A <= rows):
+        raise ValueError(f"rows assembled as they are need one update and at most its {rows} rows (got {A})")
+    return A
+
+
 @functools.cache
 def combination(pattern: str, state=f64):
     """A ``wp.func`` (c, k, s0, s1, r, p) → Σ_i c[i]·term_i with the terms named by
@@ -272,7 +288,14 @@ def _combination_state(pattern: str, state):
 
 @functools.cache
 def dss_update(
-    rows: int, copies: int, patterns: tuple, ghosts: bool = False, weighted: bool = True, dtype=f64, state=f64
+    rows: int,
+    copies: int,
+    patterns: tuple,
+    ghosts: bool = False,
+    weighted: bool = True,
+    dtype=f64,
+    state=f64,
+    assembled: int = 0,
 ):
     """The weighted DSS k of ``rows`` rows (``gather``; ``weighted`` False: the unweighted
     DSS of a weak form, as ``dss_rows``') not stored but used by
@@ -286,9 +309,10 @@ def dss_update(
     block, offset. Outputs and terms may alias each other, not x. Dim N/block
     (as ``dss_rows``). x of ``dtype`` (``gather``); the terms and outputs of ``state``
     (float32: the float32 state's stages, each combination summed in float32, ``combination``'s
-    float32 form; ``precision = "float32_state"``), the rest float64."""
-    if not 1 <= len(patterns) <= 2:
-        raise ValueError(f"one or two combinations (got {len(patterns)})")
+    float32 form; ``precision = "float32_state"``), the rest float64. ``assembled`` A > 0: the
+    last A rows of out0 take k itself, not the combination (a limited stage's tracer rows, their
+    terms of the weighted DSS in x: ``kernels.limiter.limit_stage``'s ``weigh``; one update)."""
+    A = _assembled(assembled, rows, patterns)
     sum_copies = gather(rows, bool(weighted), copies, ghosts, dtype)
     first = combination(patterns[0], state)
     second = combination(patterns[-1], state)
@@ -310,13 +334,16 @@ def dss_update(
         start = (wp.tid() + offset) * block
         for p in range(start, start + block):
             k = sum_copies(x, d, p)
-            for r in range(wp.static(rows)):
+            for r in range(wp.static(rows - A)):
                 out0[r, p] = state(first(wp.vec3d(c[0], c[1], c[2]), k[r], s00, s01, r, p))
                 if wp.static(TWO):
                     out1[r, p] = state(second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p))
+            if wp.static(A > 0):
+                for r in range(wp.static(rows - A), wp.static(rows)):
+                    out0[r, p] = state(k[r])
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted") + suffix(dtype)
-    name += state_suffix(state)
+    name += state_suffix(state) + assembled_suffix(A)
     dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 
@@ -422,16 +449,23 @@ def gather_rows(rows: int, weighted: bool, copies: int, ghosts: bool, np_: int, 
 
 @functools.cache
 def dss_update_elements(
-    rows: int, copies: int, patterns: tuple, ghosts: bool, weighted: bool, np_: int, dtype=f64, state=f64
+    rows: int,
+    copies: int,
+    patterns: tuple,
+    ghosts: bool,
+    weighted: bool,
+    np_: int,
+    dtype=f64,
+    state=f64,
+    assembled: int = 0,
 ):
     """``dss_update`` by element on GLL rows (``gather_rows``; the same bits), for the CPU, and
     with the one pattern "k" and c[0] = 1 ``dss_rows`` (1·k is k): arguments xr, x (x as rows
     and as it is), d (``Copies``), g (``Edges``), wr, rsr (spheremp's first N and rspheremp as
     rows), c, then s00, s01, out0, s10, s11, out1 as rows, offset; dim nelem. Outputs and terms
     may alias each other, not x. x of ``dtype`` (``gather_rows``), the terms and outputs of
-    ``state`` (as ``dss_update``'s), the rest float64."""
-    if not 1 <= len(patterns) <= 2:
-        raise ValueError(f"one or two combinations (got {len(patterns)})")
+    ``state`` and ``assembled`` as ``dss_update``'s, the rest float64."""
+    A = _assembled(assembled, rows, patterns)
     R, NP = int(rows), int(np_)
     vec = wp.types.vector(length=NP, dtype=f64)
     xvec = operators.row_type(NP, dtype)
@@ -461,14 +495,18 @@ def dss_update_elements(
         for j in range(NP):
             q = e * NP + j
             M = rows_dss(xr, x, d, g, wr, rsr, e, j)
-            for r in range(R):
+            for r in range(wp.static(R - A)):  # wp.static: a constant, unrolled (R − A is not, 1.6× slower)
                 k = M[r]
                 out0[r, q] = svec(first(wp.vec3d(c[0], c[1], c[2]), k, s00, s01, r, q))
                 if wp.static(TWO):
                     out1[r, q] = svec(second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q))
+            if wp.static(A > 0):
+                for r in range(wp.static(R - A), R):
+                    out0[r, q] = svec(M[r])
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
     name = ("dss" if patterns == ("k",) else name) + suffix(dtype) + state_suffix(state)  # "k": the DSS's key
+    name += assembled_suffix(A)
     dss_update.__qualname__ = dss_update.__name__ = name
     return wp.kernel(dss_update, enable_backward=False, module="unique")
 

@@ -148,7 +148,7 @@ def limited(np_: int):
 
 
 @functools.cache
-def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False):
+def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False, weigh: bool = False):
     """The kernel limiting an explicit stage's element-local values before their DSS (HOMME's
     ``euler_step``: the limiter on Qtens, then the DSS): the stage's update out = a₀·s₀ + a₁·s₁ +
     a₂·F (``ShallowWater.rhs_update``), F = M⁻¹DSS(the tendency), taken element by element as
@@ -166,8 +166,11 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
     s₁ unread but any), tend, mass, spheremp, bounds (2K, nelem: ``neighbour_bounds``), iterations
     (``limited``'s), out (K, ·), offset; all but a, bounds and iterations as rows. ``rkl``: v = t +
     a₁·(s₁ − t), t = a₀·s₀ + a₂·F_e, an RKL1 stage as ``kernels.dss.rkl_stage`` forms it (the
-    ∇⁴'s, ``first`` = 2)."""
-    W, F, NP, RKL = bool(weighted), int(first), int(np_), bool(rkl)
+    ∇⁴'s, ``first`` = 2). ``weigh``: out[k] = spheremp·h·q̃, the mass-weighted DSS's own terms
+    (the same products), for an unweighted DSS pass to assemble with other rows (the stage's
+    dynamics rows: ``dss.dss_update``'s ``assembled``); out may then be tend's own tracer rows
+    (each element reads its own before it writes them)."""
+    W, F, NP, RKL, WEIGH = bool(weighted), int(first), int(np_), bool(rkl), bool(weigh)
     vec, mat = row_derivatives(NP)[:2]
     limit = limited(NP)
 
@@ -214,9 +217,16 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False)
                 Q[j] = wp.cw_div(v, H[j])
             Q = limit(Q, C, bounds[2 * k, e], bounds[2 * k + 1, e], iterations)
             for j in range(NP):
-                out[k, base + j] = wp.cw_mul(Q[j], H[j])
+                if wp.static(WEIGH):
+                    out[k, base + j] = wp.cw_mul(spheremp[base + j], wp.cw_mul(Q[j], H[j]))
+                else:
+                    out[k, base + j] = wp.cw_mul(Q[j], H[j])
 
     kernel.__qualname__ = kernel.__name__ = (
-        "limit_stage" + ("__mass" if W else "") + (f"__from{F}" if F else "") + ("__rkl" if RKL else "")
+        "limit_stage"
+        + ("__mass" if W else "")
+        + (f"__from{F}" if F else "")
+        + ("__rkl" if RKL else "")
+        + ("__weighed" if WEIGH else "")
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")

@@ -22,15 +22,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: res
 from results import positive, quiet_warp, recorded
 
 from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
+from swe_sphere.model.limiter import LIMITERS
 
 
-def stepping(scene, grid, tracers: int, every: int | None):
+def stepping(scene, grid, tracers: int, every: int | None, limiter: str = "none"):
     """(a function taking one step and returning its CPU seconds) of ``scene`` on ``grid`` with
-    ``tracers`` q = 1 tracers, its ∇⁴ every ``every`` steps (None: the scene's)."""
+    ``tracers`` q = 1 tracers, its ∇⁴ every ``every`` steps (None: the scene's), the tracers'
+    ``limiter`` (``model.limiter.LIMITERS``)."""
     case = scene.make_case()
     hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s}
     hv["hypervis_every"] = scene.hypervis_every if every is None else every
-    model = ShallowWater.from_case(grid, case, scene.terms, tracers=tracers, threads=1, **hv)
+    limited = {"limiter": limiter} if tracers else {}
+    model = ShallowWater.from_case(grid, case, scene.terms, tracers=tracers, threads=1, **limited, **hv)
     u, v, h = case.initial(grid.lat, grid.lon)
     x = model.new_state(u, v, h, masses=np.repeat(h[None], tracers, axis=0))
     stepper = make_stepper(scene.stepper, model, scene.dt)
@@ -51,9 +54,12 @@ def main() -> None:
     parser.add_argument("--rounds", type=positive(int), default=5)
     parser.add_argument("--steps", type=positive(int), default=16, help="steps a round (a multiple of the ∇⁴'s every)")
     parser.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
+    parser.add_argument("--limiter", choices=LIMITERS, default="none", help="the tracers' limiter")
     args = parser.parse_args()
     quiet_warp()
-    with recorded(__file__, None if args.every is None else f"tracer_cost_every{args.every}") as figures:
+    stem = "tracer_cost" + ("" if args.every is None else f"_every{args.every}")
+    stem += "" if args.limiter == "none" else f"_{args.limiter}"
+    with recorded(__file__, None if stem == "tracer_cost" else stem) as figures:
         measure(args, figures)
 
 
@@ -61,7 +67,7 @@ def measure(args, figures: dict) -> None:
     """``main``'s rounds and line; the ratio into ``figures``."""
     scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
     grid = CubedSphere(args.ne, 4)
-    runs = {k: stepping(scene, grid, k, args.every) for k in (0, args.tracers)}
+    runs = {k: stepping(scene, grid, k, args.every, args.limiter) for k in (0, args.tracers)}
     seconds = {k: [] for k in runs}
     for _ in range(args.rounds):
         for k, step in runs.items():  # interleaved: the machine's load falls on both alike
@@ -71,7 +77,8 @@ def measure(args, figures: dict) -> None:
     figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
     print(
         f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: a step "
-        f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}; "
+        f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}"
+        f"{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
         f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
         f"(medians of {args.rounds} rounds of {args.steps} steps)"
     )

@@ -376,7 +376,7 @@ class Topology(RankReductions):
         launch = record(kernel, nodes.shape[0], [x, copies, nodes, out], device=self.backend, threads=self.threads)
         return [*self._exchange(x), launch]
 
-    def dss_update(self, x: wp.array2d, updates, weighted: bool = True, rkl: bool = False) -> list:
+    def dss_update(self, x: wp.array2d, updates, weighted: bool = True, rkl: bool = False, assembled: int = 0) -> list:
         """Launches for the weighted DSS k of x (rows, N) (``weighted`` False: the unweighted
         one, of a weak form), not stored but used by
         one or two ``updates`` (out, terms) in order: out = Σ a·src over the
@@ -384,7 +384,9 @@ class Topology(RankReductions):
         (``kernels.dss.dss_update``: summed left to right, the bits of
         ``blas.axpby``/``axpbypcz`` on a stored k). Outputs may alias terms, not x. The terms
         and outputs float64, or all float32 (the float32 state's stages). ``rkl``: each update's
-        terms (1, s0), (ν, s1), (coef, k) formed as an RKL1 stage (``kernels.dss.rkl_stage``)."""
+        terms (1, s0), (ν, s1), (coef, k) formed as an RKL1 stage (``kernels.dss.rkl_stage``).
+        ``assembled`` A: the last A rows of the one update's out take k itself (x's rows there
+        the terms of a weighted DSS: a limited stage's tracers, ``kernels.dss.dss_update``'s)."""
         patterns, coefs, arrays = [], [], []
         for out, terms in updates:
             patterns.append("rkl" if rkl else "".join("k" if src is None else "a" for _, src in terms))
@@ -397,7 +399,7 @@ class Topology(RankReductions):
             return self.by_element(
                 x,
                 lambda rows, copies, ghosts, np_: dss.dss_update_elements(
-                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_, x.dtype, arrays[0].dtype
+                    rows, copies, tuple(patterns), ghosts, bool(weighted), np_, x.dtype, arrays[0].dtype, assembled
                 ),
                 [dss.vec6(*coefs), *(row_vectors(a, self.grid.np) for a in arrays)],
             )
@@ -411,6 +413,7 @@ class Topology(RankReductions):
                 weighted=bool(weighted),
                 dtype=x.dtype,
                 state=arrays[0].dtype,
+                assembled=assembled,
             ),
             [dss.vec6(*coefs), *arrays],
         )

@@ -389,12 +389,12 @@ class ShallowWater:
         launches, lo, hi, weighted = self._build_tendency(x, named)
         groups = []  # (rows, [(out, terms)]): one DSS for each run of at most two updates of the same rows
         rest = []  # F is zero in the rows its terms do not write: there the arrays' combination alone
-        limited = []  # the last update's tracer rows, limited before their DSS (``limit``)
+        limited = []  # the last update's tracer rows limited in tend before its DSS pass (``limit``)
         if limit:
             last = updates[-1]
             if last.rows is not None or hi <= 3 or sum(src is None for _, src in last.terms) != 1:
                 raise ValueError("a limited update is of all rows, with tracers, and holds F once")
-            limited = self.limiter.stage(last, self.tendency_arrays.tend, weighted)
+            limited = self.limiter.stage(last, self.tendency_arrays.tend, weighted, assemble=False)
         for n, (out, terms, rows) in enumerate(updates):
             if rows is None:
                 arrays = tuple((a, src) for a, src in terms if src is not None)
@@ -406,20 +406,22 @@ class ShallowWater:
                             )
                         rest.append(self.lincomb(out[r0:r1], ((a, src[r0:r1]) for a, src in arrays)))
             r0, r1 = (lo, hi) if rows is None else (rows.start, rows.stop)
-            if limited and n == len(updates) - 1:
-                r1 = 3  # its tracer rows: ``limited``
             if not lo <= r0 < r1 <= hi:
                 raise ValueError(f"an update of rows {r0}:{r1}, of which the terms {named} write only {lo}:{hi}")
             sliced = (out[r0:r1], tuple((a, None if src is None else src[r0:r1]) for a, src in terms))
-            if groups and groups[-1][0] == (r0, r1) and len(groups[-1][1]) < 2:
+            alone = limited and n == len(updates) - 1  # its own pass: the tracer rows it reads are limited
+            if groups and groups[-1][0] == (r0, r1) and len(groups[-1][1]) < 2 and not alone:
                 groups[-1][1].append(sliced)
             else:
                 groups.append(((r0, r1), [sliced]))
         for k, ((r0, r1), group) in enumerate(groups):
-            if limited and k == len(groups) - 1:  # the limiter reads the last update's arrays before its DSS writes
-                launches.append(limited[0])
-            launches.extend(self.topology.dss_update(self.tendency_arrays.tend[r0:r1], group, weighted=not weighted))
-        return launches + limited[1:] + rest  # after the tendency, which may read their outputs
+            assembled = 0
+            if limited and k == len(groups) - 1:  # after the earlier passes, which read tend's unlimited tracer rows,
+                launches.extend(limited)  # and before its own, which writes the arrays the limiter reads
+                assembled = r1 - 3
+            tend = self.tendency_arrays.tend[r0:r1]
+            launches.extend(self.topology.dss_update(tend, group, weighted=not weighted, assembled=assembled))
+        return launches + rest  # after the tendency, which may read their outputs
 
     def set_time(self, t: float) -> None:
         """Set the model time t (s) at which ``rhs`` evaluates a time-dependent

@@ -313,7 +313,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "tracer_laplacian__second",
         "element_bounds_np4",
         "neighbour_bounds",
-        "limit_stage__mass",
+        "limit_stage__mass__weighed",  # a limited stage's tracers, assembled with its dynamics rows
         "limit_stage__mass__from2",
         "axpbypcz",
         "dss",
@@ -337,6 +337,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         if k.key in ("dss", "dss_float32") or k.key.startswith(("dss_update__", "dss_apply"))
     }
     assert any(k.key.startswith("dss_update__") for k in launched)  # the explicit stages' combinations
+    assert any("__assembled" in k.key for k in launched)  # a limited stage's pass: its tracers as they are
     assert len(ghosted) == len(plain_dss) >= 3 and not plain_dss & {k.module.name for k in ghosted}
     files = {k.func.__module__ for k in module_level + launched}
     for info in pkgutil.iter_modules(kernels_pkg.__path__):

@@ -66,6 +66,28 @@ def test_element_rows_give_the_node_gathers_bits(name, rng):
         assert np.array_equal(got.view(np.int64), want.view(np.int64))
 
 
+@pytest.mark.parametrize("element_rows", [True, False])
+def test_assembled_rows_are_the_weighted_dss_of_their_values(element_rows, rng):
+    """A limited stage's pass (``dss_update``'s ``assembled``: the limiter writes spheremp·v
+    over its tracer rows, ``kernels.limiter.limit_stage``'s ``weigh``): its last rows are the
+    weighted DSS of v and its first the unweighted update's, bit for bit, each way (cube ne2 np4)."""
+    g = cached_grid(2, 4)
+    with mock.patch.object(Topology, "element_rows", element_rows):
+        topo = Topology(g, "cpu", threads=2)
+    assert (topo.edges is not None) == element_rows
+    x, v, a = (rng.standard_normal((5, g.nnodes)) for _ in range(3))
+    spheremp = topo.spheremp.numpy()[: g.nnodes]
+    mixed = np.concatenate([x[:3], spheremp * v[3:]])
+    got, want, assembled = (wp.array(a, dtype=f64) for _ in range(3))
+    launch_all(topo.dss_update(wp.array(mixed, dtype=f64), [(got, [(1.0, got), (0.3, None)])], False, assembled=2))
+    launch_all(topo.dss_update(wp.array(x[:3], dtype=f64), [(want[:3], [(1.0, want[:3]), (0.3, None)])], False))
+    launch_all(topo.dss(wp.array(v[3:], dtype=f64), True, want[3:]))
+    assert np.array_equal(got.numpy().view(np.int64), want.numpy().view(np.int64))
+    assert not np.array_equal(got.numpy()[3:], a[3:])  # written
+    with pytest.raises(ValueError, match="one update"):
+        topo.dss_update(wp.array(mixed, dtype=f64), [(got, [(0.3, None)]), (got, [(0.3, None)])], False, assembled=2)
+
+
 def test_each_edge_nodes_other_copy(rng):
     """``Edges.other`` holds the one other copy of each node inside an edge; ``aligned`` the
     neighbour's row whose inner lanes are those copies, where it runs lane for lane."""

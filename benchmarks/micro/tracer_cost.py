@@ -22,13 +22,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: res
 from results import positive, quiet_warp, recorded
 
 from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
-from swe_sphere.model.limiter import LIMITERS
 
 
 def stepping(scene, grid, tracers: int, every: int | None, limiter: str = "none"):
     """(a function taking one step and returning its CPU seconds) of ``scene`` on ``grid`` with
     ``tracers`` q = 1 tracers, its ∇⁴ every ``every`` steps (None: the scene's), the tracers'
-    ``limiter`` (``model.limiter.LIMITERS``)."""
+    ``limiter`` (a scene's tracers.limiter; the model refuses another name)."""
     case = scene.make_case()
     hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s}
     hv["hypervis_every"] = scene.hypervis_every if every is None else every
@@ -54,7 +53,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=positive(int), default=5)
     parser.add_argument("--steps", type=positive(int), default=16, help="steps a round (a multiple of the ∇⁴'s every)")
     parser.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
-    parser.add_argument("--limiter", choices=LIMITERS, default="none", help="the tracers' limiter")
+    parser.add_argument("--limiter", default="none", help="the tracers' limiter (a scene's tracers.limiter)")
     args = parser.parse_args()
     quiet_warp()
     stem = "tracer_cost" + ("" if args.every is None else f"_every{args.every}")

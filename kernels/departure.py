@@ -80,10 +80,12 @@ def element_mass(
 
 
 @wp.kernel(enable_backward=False)
-def restore_mass(h: wp.array(dtype=Any), totals: wp.array(dtype=f64), area: f64, offset: int):
-    """h += (totals[0] − totals[1]) / area: the mass lost between the two totals (m³) spread
-    over the sphere's area (m²) by weight spheremp, a uniform depth (every copy of a node moved
-    alike: h stays continuous). Dim N/W."""
+def restore_mass(h: wp.array(dtype=Any), totals: wp.array2d(dtype=f64), area: f64, lanes: int, offset: int):
+    """h += (totals[0, m] − totals[1, m]) / area in member m (h's lanes ``lanes`` a member, member
+    after member): the mass lost between its two totals (m³) spread over its sphere's area (m²)
+    by weight spheremp, a uniform depth (every copy of a node moved alike: h stays continuous).
+    Dim N/W."""
     p = wp.tid() + offset
+    m = p // lanes
     v = h[p]
-    h[p] = v + type(v)(type(v[0])((totals[0] - totals[1]) / area))  # rounded once to h's float type
+    h[p] = v + type(v)(type(v[0])((totals[0, m] - totals[1, m]) / area))  # rounded once to h's float type

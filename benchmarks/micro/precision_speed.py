@@ -23,9 +23,10 @@ state and stages in float32 too), its RHS on the float32 state as a stage reads 
 (``rhs_call``), each timed against float64 in the same rounds. A precision with ``:rows``
 (``float32:rows``, ``float32_state:rows``) is that precision's model with its tendency on GLL
 rows (``ShallowWater``'s ``lanes=0``), the layout before its vector lanes (``model.lanes``: W
-elements a vector at np 4), timed in the same rounds; ``float32_state:kept`` the float32 state
-kept between steps (``numerics.compensated = false``: ``model.held``, its stepper stepping the
-float32 state with no conversion)::
+elements a vector at np 4), timed in the same rounds. ``float32_state`` keeps the float32 state
+between steps (its default: ``model.held``, its stepper stepping the float32 state with no
+conversion); ``float32_state:compensated`` holds the float64 state between steps
+(``numerics.compensated = true``: converted at each step's two ends)::
 
     SWE_SPHERE_THREADS=1 python benchmarks/micro/precision_speed.py --grids tc5_ne120_np4 \
         --precisions float64 float32:rows float32 float32_state:rows float32_state
@@ -113,8 +114,8 @@ def rhs_call(model, x):
 
 def build(name: str, ne: int, np_: int, precision: str):
     """(model, stepper, state) of scene ``name`` at ne, np in ``precision`` (``:rows``: its tendency
-    on rows, ``lanes=0``; ``:kept``: the float32 state kept between steps, the state the run
-    holds), one thread, CPU."""
+    on rows, ``lanes=0``; ``:compensated``: the float64 state held between steps, each step's
+    float32 increment added to it), one thread, CPU."""
     from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
     precision, _, layout = precision.partition(":")
@@ -122,7 +123,7 @@ def build(name: str, ne: int, np_: int, precision: str):
     case = scene.make_case()
     grid = CubedSphere(ne, np_, radius=case.planet.a)
     lanes = 0 if layout == "rows" else None
-    options = {"compensated": False} if layout == "kept" else {}
+    options = {"compensated": True} if layout == "compensated" else {}
     model = ShallowWater.from_scene(
         scene, grid, case, device="cpu", threads=1, precision=precision, lanes=lanes, **options
     )
@@ -172,7 +173,14 @@ def main(argv=None):
         "--precisions",
         nargs="+",
         default=list(PRECISIONS),
-        choices=("float64", "float32", "float32_state", "float32:rows", "float32_state:rows", "float32_state:kept"),
+        choices=(
+            "float64",
+            "float32",
+            "float32_state",
+            "float32:rows",
+            "float32_state:rows",
+            "float32_state:compensated",
+        ),
         help="float64 first, each timed against it (default %(default)s)",
     )
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")

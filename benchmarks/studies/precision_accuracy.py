@@ -24,8 +24,10 @@ run (set-up and compile included). Verdict: "float32 holds" where |e32 − e64| 
 of e64. Printed as a markdown table; figures to ``results/precision_accuracy/precision_accuracy.json``.
 
 ``--precision`` sets another against float64 in the float32 column's place (issue 128):
-"float32_state" (a step's state and stages in float32, its increments compensated) or
-"float32_state_uncompensated" (``numerics.compensated = false``).
+"float32_state" (a step's state and stages in float32, the float32 state kept from step to step)
+or "float32_state_compensated" (``numerics.compensated = true``: a float64 state between steps,
+each step's float32 increment added to it); ``--no-mass-fixer`` runs it with
+``numerics.mass_fixer = false`` (the float32 state's mass left to drift).
 """
 
 from __future__ import annotations
@@ -77,8 +79,9 @@ OTHERS = ("ref_l2_h_surface", "ref_l2_wind", "ref_l2_vorticity_eq83", "l2_h", "l
 INVARIANTS = ("mass_change", "total_energy_change", "potential_enstrophy_change")
 HOLDS = 0.10  # |e32 − e64| / e64 at most
 # the precisions set against float64 (``--precision``): the mixed float32, the float32 state
-# (``model.precision``), and the float32 state rounded at each step's end (numerics.compensated false)
-LOWER = ("float32", "float32_state", "float32_state_uncompensated")
+# (``model.precision``: kept between steps), and its increments added to a float64 state between
+# steps (numerics.compensated true)
+LOWER = ("float32", "float32_state", "float32_state_compensated")
 
 
 def expand(names: list[str]) -> list[str]:
@@ -91,12 +94,16 @@ def expand(names: list[str]) -> list[str]:
     return out
 
 
-def one_run(scene: str, ne, np_, stepper, precision: str, keep: str | None, name: str):
+def one_run(scene: str, ne, np_, stepper, precision: str, keep: str | None, name: str, fixer: bool = True):
     """(the run file's dataset, CPU s of the call) of a scene at a precision (``LOWER``'s label:
-    "float32_state_uncompensated", float32_state with ``numerics.compensated = false``)."""
-    overrides = {"precision": precision.removesuffix("_uncompensated")}
-    if precision.endswith("_uncompensated"):
-        overrides["numerics"] = {"compensated": False}
+    "float32_state_compensated", float32_state with ``numerics.compensated = true``); ``fixer``
+    False: a float32 state's without its mass fixer."""
+    overrides = {"precision": precision.removesuffix("_compensated")}
+    numerics = {"compensated": True} if precision.endswith("_compensated") else {}
+    if not fixer and overrides["precision"] == "float32_state":
+        numerics["mass_fixer"] = False
+    if numerics:
+        overrides["numerics"] = numerics
     overrides |= {k: v for k, v in (("ne", ne), ("np", np_), ("stepper", stepper)) if v is not None}
     if MEASURE[scene][2] is not None:
         overrides["case"] = {"reference": "T341"}
@@ -128,13 +135,14 @@ def norm(ds, f) -> float:
     return math.sqrt(float(np.sum(ds.area.values * f * f)))
 
 
-def row_figures(name: str, keep: str | None, low: str = "float32") -> dict:
-    """Both runs of a row, float64 and ``low`` (a ``LOWER``), and its figures."""
+def row_figures(name: str, keep: str | None, low: str = "float32", fixer: bool = True) -> dict:
+    """Both runs of a row, float64 and ``low`` (a ``LOWER``; ``fixer`` False: without its mass
+    fixer), and its figures."""
     scene, ne, np_, stepper, label = ROWS[name]
     runs = {}
     for precision in ("float64", low):
         load = os.getloadavg()[0]
-        ds, cpu = one_run(scene, ne, np_, stepper, precision, keep, name)
+        ds, cpu = one_run(scene, ne, np_, stepper, precision, keep, name, fixer)
         last = ds.isel(time=-1)
         runs[precision] = {
             "ds": ds,
@@ -167,6 +175,7 @@ def row_figures(name: str, keep: str | None, low: str = "float32") -> dict:
         "measure": MEASURE[scene][0],
         "error_float64": e64,
         "low": low,
+        "mass_fixer": fixer,
         f"error_{low}": e32,
         "error_float64_recomputed": norm(d64, f64 - f_ref) / ref_norm,
         "error_difference": abs(e32 - e64) / e64,
@@ -213,6 +222,11 @@ def main() -> None:
     parser.add_argument(
         "--precision", default="float32", choices=LOWER, help="the precision set against float64 (default %(default)s)"
     )
+    parser.add_argument(
+        "--no-mass-fixer",
+        action="store_true",
+        help="the float32 state without its mass fixer (numerics.mass_fixer = false)",
+    )
     parser.add_argument("--results", metavar="STEM", help="results/STEM.json (default precision_accuracy)")
     args = parser.parse_args()
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
@@ -221,7 +235,7 @@ def main() -> None:
     with recorded(__file__, args.results) as figures:
         rows = []
         for name in expand(args.rows):
-            rows.append(row_figures(name, args.keep, args.precision))
+            rows.append(row_figures(name, args.keep, args.precision, not args.no_mass_fixer))
             r = rows[-1]
             print(
                 f"{name}: {r['measure']} float64 {r['error_float64']:.6e} {args.precision} {r[f'error_{args.precision}']:.6e} "

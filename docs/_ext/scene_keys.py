@@ -140,9 +140,9 @@ KEYS = {
         "(a step's state and stages float32 too: the explicit Runge-Kutta steppers, a fixed dt)",
     ),
     "numerics.compensated": (
-        "true",
-        'under "float32_state": a step\'s float32 increment added to the float64 state in float64 (true), '
-        "or the state rounded to the float32 one (false)",
+        "false",
+        'under "float32_state": the run keeps the float32 state from step to step (false), or holds the '
+        "float64 state between steps, each step's float32 increment added to it in float64 (true)",
     ),
     "numerics.mass_fixer": (
         "true",

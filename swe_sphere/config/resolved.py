@@ -101,9 +101,9 @@ class Scene:
         (``ShallowWater.from_scene`` reads it); the state and its accumulation stay float64; or
         "float32_state", a step's state and stages float32 too (``model.precision``).
     compensated : bool
-        [numerics] compensated: under "float32_state", whether a step's float32 increment is
-        added to a float64 state the run holds between steps (True, the default), or the run
-        keeps the float32 state from step to step (False: ``model.held``); unread otherwise.
+        [numerics] compensated: under "float32_state", whether the run keeps the float32 state
+        from step to step (False, the default: ``model.held``) or holds a float64 state between
+        steps, each step's float32 increment added to it in float64 (True); unread otherwise.
     mass_fixer : bool
         [numerics] mass_fixer: under "float32_state", whether a step's end puts back the mass
         its start held (True, the default: ``model.mass_fixer``); unread otherwise.
@@ -173,7 +173,7 @@ class Scene:
     own_planet: dict | None = field(default=None, compare=False)
     own_days: float | None = field(default=None, compare=False)
     precision: str = "float64"  # [numerics] precision: the RHS tendency's type (and "float32_state": the state's)
-    compensated: bool = True  # [numerics] compensated: the float32 state's increments added to a float64 one
+    compensated: bool = False  # [numerics] compensated: the float32 state's increments added to a float64 one
     mass_fixer: bool = True  # [numerics] mass_fixer: the float32 state's mass put back each step
     tracers: tuple = ()  # [tracers]: ((name, initial field), ...); (): none
     tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)
@@ -309,10 +309,10 @@ class Scene:
                 del d[key]
         if d["hypervis_every"] == 1:  # the default: a scene's dict as before the key
             del d["hypervis_every"]
+        if d["precision"] != "float32_state":  # unread; written under it, either way (``scene_from_dict``)
+            del d["compensated"]
         if d["precision"] == "float64":  # the default, likewise
             del d["precision"]
-        if d["compensated"]:  # the default, likewise
-            del d["compensated"]
         if d["mass_fixer"]:  # the default, likewise
             del d["mass_fixer"]
         if not d["tracers"]:  # none: a scene's dict as before the key
@@ -332,7 +332,8 @@ def scene_from_dict(d: dict) -> Scene:
     A key this version added with a default (e.g. ``initialization``) may be
     missing: its default is the behaviour of the version that wrote ``d``, so a
     restart file from before the key existed still continues bitwise. ValueError
-    for an unknown key or a missing key without a default.
+    for an unknown key or a missing key without a default. A "float32_state" record without
+    ``compensated`` was written when the compensated state was that precision's default: True.
     """
     fields = dataclasses.fields(Scene)
     unknown = set(d) - {f.name for f in fields}
@@ -344,6 +345,8 @@ def scene_from_dict(d: dict) -> Scene:
     if unknown or missing:
         raise ValueError(f"scene keys differ from this version's: {', '.join(sorted(unknown | missing))}")
     streams = tuple({**st, "fields": tuple(st["fields"])} for st in d.get("output_streams", ()))
+    if d.get("precision") == "float32_state":
+        d = {"compensated": True, **d}
     return Scene(
         **{
             **d,

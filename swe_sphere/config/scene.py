@@ -74,8 +74,8 @@ the run length, the output interval and the hyperviscosity. Layout::
                       refused with a stepper that differences the RHS
                       (``Described.float32_refusal``) | "float32_state" (a step's state and
                       stages float32 too: the explicit Runge-Kutta steppers, a fixed dt),
-                      compensated = true | false (the float32 state's increments added to a
-                      float64 one, or the float32 state kept from step to step: ``Scene.compensated``),
+                      compensated = false | true (the float32 state kept from step to step,
+                      or its increments added to a float64 one: ``Scene.compensated``),
                       mass_fixer = true | false (the float32 state's mass put back each step:
                       ``Scene.mass_fixer``)
 
@@ -332,7 +332,8 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         own_dt=own_dt,
         **dict(zip(("own_planet", "own_days"), _own_planet_days(own))),
         precision=t.precision,
-        compensated=bool(s.get("numerics", {}).get("compensated", True)),
+        # read under "float32_state" alone (False otherwise: the record leaves it out)
+        compensated=t.precision == "float32_state" and bool(s.get("numerics", {}).get("compensated", False)),
         mass_fixer=bool(s.get("numerics", {}).get("mass_fixer", True)),
         tracers=resolve_tracers(s.get("tracers", {}), t.case, t.terms, t.stepper, t.controlled, t.precision, options),
         tracer_file=resolve_tracer_file(s.get("tracers", {}), path),

@@ -211,9 +211,7 @@ class Members:
         kept = np.concatenate([k for _, k in going]) if going else np.zeros(0, int)  # a dropped member's left as it is
         if self.topology.comm.rank == 0:  # a single run's on rank 0, members' on theirs
             initial.checked_states(states[kept], self.case, "states", kept)
-        for u, k in going:
-            if u.model.mass_fixer is not None:  # the new states' mass is the one to keep
-                u.model.mass_fixer.taken = False
+        for u, k in going:  # a kept float32 state's mass taken again: the new states' is the one to keep
             u.model.held.assign(
                 u.x, u.model.topology.distribute(np.concatenate(list(states[k]), axis=1), rows, "states")
             )
@@ -420,15 +418,16 @@ class Members:
         if self.members is None:
             return x, state, {**self.run.initial, **fixed}, self.grid, departure
         keep = {"initial_states": self.initial_states, "layout": self.layout, "variants": self.variants, **policy}
-        return x, state, keep, MemberGrid(self.grid, self.members), departure
+        return x, state, {**keep, **fixed}, MemberGrid(self.grid, self.members), departure
 
     def mass_targets(self) -> list[float] | None:
-        """[the mass a single run's fixer keeps] where it keeps the float32 state (``model.held``,
-        ``model.mass_fixer``: taken at its first step; a restart file keeps it); None otherwise."""
-        fixer = self.units[0].model.mass_fixer  # a single run's (an ensemble's members take theirs again)
-        if self.members is not None or not self.units[0].model.held.kept or fixer is None or not fixer.taken:
+        """The mass each member's fixer keeps (m³, in member order, on rank 0; collective) where
+        the run keeps the float32 state (``model.held``, ``model.mass_fixer``: taken as its state
+        was set; a restart file keeps them); None otherwise (a fixer taking each step's start's)."""
+        model = self.units[0].model
+        if not model.held.kept or model.mass_fixer is None:
             return None
-        return [fixer.target]
+        return self.on_root([t for u in self.units for t in u.model.mass_fixer.targets])
 
     def restore(self, ck, state: bool = True) -> None:
         """The states and stepper histories of the checkpoint ``ck`` (of the run's kind) into the units
@@ -450,9 +449,12 @@ class Members:
             self.run.initial = {k: v for k, v in ck.initial.items() if k != "mass_fixer"}
             self._restore_targets(ck.initial)
             return
+        targets = ck.initial.get("mass_fixer")  # a kept float32 state's, a member each
         for u, k in zip(self.units, self.unit_held):  # the unit's members' columns of the file's arrays
             nodes = np.arange(ck.x.shape[1]).reshape(ck.members, -1)[k].ravel()
             u.model.held.assign(u.x, ck.x[:, nodes], None if ck.departure is None else ck.departure[nodes])
+            if targets is not None:
+                u.model.mass_fixer.targets = [targets[m] for m in k]
             prefix = None if self.layout == "shared" else f"member{k[0]}_"
             u.stepper.restore(unit_state(ck.stepper_state, nodes, prefix))
         dropped = {int(k): step for k, step in ck.initial.get("dropped", {}).items()}  # their last good states
@@ -460,6 +462,7 @@ class Members:
         self.initial_states = ck.initial.get("initial_states", self.initial_states)
 
     def _restore_targets(self, kept: dict) -> None:
-        """A single run's fixer's mass from a restart file's (``mass_targets``; none kept: taken again)."""
-        for target in kept.get("mass_fixer", ()):
-            self.units[0].model.mass_fixer.target = target
+        """A single run's fixer's mass from a restart file's (``mass_targets``; none kept: the
+        state's own, taken as it was set)."""
+        if "mass_fixer" in kept:
+            self.units[0].model.mass_fixer.targets = kept["mass_fixer"]

@@ -1,7 +1,7 @@
 """The state a run holds between steps (``ShallowWater.held``), and the one place it is read or
 set in float64.
 
-Under ``precision = "float32_state"`` without ``compensated`` the run holds the float32 state its
+Under ``precision = "float32_state"`` (without ``compensated``: its default) the run holds the float32 state its
 steps carry, u, v and h − H₀ (``kernels.departure``), from its first step to its last: a step
 reads it and writes it in place and converts nothing. What reads it in float64 converts here: the
 diagnostics and the files (``values``: the float64 state on the host), the operators the
@@ -42,8 +42,11 @@ class HeldState:
         return self.dtype is not f64
 
     def new(self, values: np.ndarray) -> wp.array2d:
-        """A held state (rows, N) on the model's device from float64 host ``values`` (rows, N)."""
-        return wp.array(self.rounded(values), dtype=self.dtype, device=self.model.device)
+        """A held state (rows, N) on the model's device from float64 host ``values`` (rows, N),
+        its mass taken as the one to keep (``take_mass``)."""
+        x = wp.array(self.rounded(values), dtype=self.dtype, device=self.model.device)
+        self.take_mass(x)
+        return x
 
     def rounded(self, values: np.ndarray) -> np.ndarray:
         """``values`` (rows, N float64: u, v, h, …) as the held state's numbers: themselves, or
@@ -62,6 +65,16 @@ class HeldState:
         if self.kept and departure is not None:
             y[2] = np.asarray(departure, dtype=np.float32)
         x.assign(y)
+        self.take_mass(x)
+
+    def take_mass(self, x: wp.array2d) -> None:
+        """A kept float32 state's mass, as it is set, taken as the mass its fixer keeps
+        (``model.mass_fixer``; a restart's own put back after: ``members``): a step's uniform depth
+        below float32's spacing is lost, so each step's start would drift, and a mass taken here
+        rather than at the first step leaves a step's launches the same every step (a captured
+        graph's). Nothing otherwise (a float64 state's fixer takes each step's start's)."""
+        if self.kept and self.model.mass_fixer is not None:
+            self.model.mass_fixer.measure(x)
 
     def departure(self, x: wp.array2d) -> np.ndarray | None:
         """The kept float32 state's h − H₀ (N,) as it is (a restart file's ``h_departure``), None

@@ -9,7 +9,14 @@ restore what its non-conserving transport loses (Diamantakis & Flemming 2014, Ge
 The two masses are float64 sums in the whole grid's element order: each element's Σ spheremp·h
 (``kernels.departure.element_mass``), then the elements one after another (``blas.row_totals``
 on the device with one rank; gathered and added in the same order on the host with several), so
-that a run has the same bits on any rank count."""
+that a run has the same bits on any rank count. On an ensemble's copies of the grid (a grid with
+``members``: ``members.grid.MemberGrid``) each member's mass is its own, summed and put back as
+its single run's.
+
+Where the run keeps the float32 state (``model.held``) the mass to keep is taken once, when the
+held state is set (``measure``: the run's start, a state set from outside), or set from a restart
+file (``targets``), never inside a step: a step is then the same launches every time, as a
+captured graph replays it."""
 
 from __future__ import annotations
 
@@ -22,19 +29,21 @@ f64 = wp.float64
 
 
 class MassFixer:
-    """The mass of a state (3, N float64) taken at a step's start (``measure``) put back at its
-    end (``restore``), on ``model``'s topology through its launches."""
+    """The mass of a state (rows, N) taken at a step's start (``measure``) put back at its end
+    (``restore``), each member's its own (``members``: 1, or an ensemble's copies of the grid),
+    on ``model``'s topology through its launches."""
 
     def __init__(self, model):
         topo = self.topology = model.topology
         self.launches, self.block = model.launches, model.grid.np**2
+        self.members = int(getattr(topo.grid, "members", 1))  # a MemberGrid's copies, member after member
         nelem = topo.N // self.block
         self.masses = wp.zeros((2, nelem), dtype=f64, device=topo.device)  # the start's and the end's, by element
-        self.totals = wp.zeros(2, dtype=f64, device=topo.device)
-        # Σ spheremp over the sphere (m²) in the masses' order: the same bits on any rank count
-        self.area = float(self.whole_totals(topo.grid.spheremp.reshape(1, nelem, self.block).sum(axis=2))[0])
+        self.totals = wp.zeros((2, self.members), dtype=f64, device=topo.device)  # by member
+        # Σ spheremp over one member's sphere (m²) in the masses' order: the same bits on any rank count
+        one = topo.grid.spheremp.reshape(1, nelem, self.block).sum(axis=2)[:, : nelem // self.members]
+        self.area = float(self.whole_totals(one)[0])
         self._recorded: dict = {}
-        self.taken = False  # whether ``measure`` took the mass to keep (a kept float32 state's, once)
 
     def whole_totals(self, by_element: np.ndarray) -> np.ndarray:
         """(rows,) sums of (rows, nelem) per-element values of this rank's elements over the
@@ -59,39 +68,41 @@ class MassFixer:
         self._recorded[key].launch()
 
     def measure(self, x: wp.array2d) -> None:
-        """Take x's mass ∫h (m³; of a float32 state's h − H₀, less H₀·area) as the one to keep:
-        a step's start, or where the run keeps the float32 state its first step's (``taken``)."""
+        """Take x's mass ∫h (m³ a member; of a float32 state's h − H₀, less H₀·area) as the one
+        to keep: a step's start, or the state a run keeps in float32 as it is set
+        (``model.held.HeldState``)."""
         self._launch(x, 0)
         self._total(0)
-        self.taken = True
 
     @property
-    def target(self) -> float:
-        """The mass ``measure`` took (m³, the float64 sum; collective where ``restore`` is): a
-        restart file keeps a kept float32 state's (``members``), which a continuation sets back."""
-        return float(self.totals.numpy()[0])
+    def targets(self) -> list[float]:
+        """The masses ``measure`` took, a member each (m³, the float64 sums; collective where
+        ``restore`` is): a restart file keeps a kept float32 state's (``members``), which a
+        continuation sets back."""
+        return [float(m) for m in self.totals.numpy()[0]]
 
-    @target.setter
-    def target(self, mass: float) -> None:
-        self.totals.assign(np.array([mass, 0.0]))
-        self.taken = True
+    @targets.setter
+    def targets(self, masses) -> None:
+        totals = self.totals.numpy()
+        totals[0] = masses
+        self.totals.assign(totals)
 
     def restore(self, x: wp.array2d) -> None:
-        """Move x's depth by the uniform amount that gives it the mass ``measure`` took (each
-        node's move rounded to x's float type: below a float32 state's spacing it is lost, and
-        the mass left out stays a deficit that the next step's fixer puts back with its own)."""
+        """Move each member's depth by the uniform amount that gives it the mass ``measure``
+        took (each node's move rounded to x's float type: below a float32 state's spacing it is
+        lost, and the mass left out stays a deficit that the next step's fixer puts back with its
+        own)."""
         self._launch(x, 1)
         self._total(1)
-        self.launches.run_lanes(departure.restore_mass, x[2], self.totals, f64(self.area))
+        lanes = self.topology.N // self.members // (self.block if self.launches.per_element else 1)  # a member's
+        self.launches.run_lanes(departure.restore_mass, x[2], self.totals, f64(self.area), lanes)
 
     def _total(self, slot: int) -> None:
-        """totals[slot] = the whole grid's sum of masses[slot] (``whole_totals``' bits)."""
-        if self.topology.distributed:  # a host read: a step over several ranks is never a graph
+        """totals[slot] = each member's sum of masses[slot] over the whole grid (``whole_totals``' bits)."""
+        if self.topology.distributed:  # a host read: a step over several ranks is never a graph (one member)
             totals = self.totals.numpy()
-            totals[slot] = self.whole_totals(self.masses.numpy()[slot : slot + 1])[0]
+            totals[slot] = self.whole_totals(self.masses.numpy()[slot : slot + 1])
             self.totals.assign(totals)
         else:
-            wp.launch(
-                blas.row_totals, 1, [self.masses[slot : slot + 1], self.totals[slot : slot + 1]],
-                device=self.topology.device,
-            )  # fmt: skip
+            rows = self.masses[slot].reshape((self.members, -1))  # a member's elements a row
+            wp.launch(blas.row_totals, 1, [rows, self.totals[slot]], device=self.topology.device)

@@ -15,11 +15,12 @@ geometry's and the tendency's bytes, and on a GPU without fast float64 runs at f
 
 ``precision = "float32_state"`` holds a step's state and stages in float32 as well: u, v and the
 depth's departure h − H₀ (``kernels.departure``), which the tendency reads as it is stored and
-the DSS's combinations write (each summed in float32: ``kernels.dss.combination``); an explicit Runge–Kutta
-step takes them from the float64 state at its start and gives its increment back to it at its
-end, compensated (the float32 increment added in float64: Klöwer et al. 2022's compensated time
-integration) or not (``ShallowWater``'s ``compensated``). Between steps the state is float64: the
-clock's loop, the ∇⁴ (as under "float32"), the diagnostics and the files read it.
+the DSS's combinations write (each summed in float32: ``kernels.dss.combination``). By default
+the run keeps that float32 state from step to step (``model.held``: the diagnostics and the files
+read it converted, the ∇⁴ acts on it in place); with ``ShallowWater``'s ``compensated`` an
+explicit Runge–Kutta step takes it from a float64 state at its start and adds its increment back
+in float64 at its end (Klöwer et al. 2022's compensated time integration), the float64 state
+then being what the clock's loop, the ∇⁴ (as under "float32"), the diagnostics and the files read.
 """
 
 from __future__ import annotations

@@ -16,8 +16,8 @@ A new stepper's author reads this first. The verbs, as Dinosaur's ``explicit_ter
   kernel, recorded), ``bad_nodes`` (the check of a state for non-finite or dry nodes), and the
   state a step's stages carry: ``state_dtype`` (float64, or float32 under "float32_state"),
   ``to_step_state`` and ``from_step_state`` (the float64 state to it at a step's start and back
-  at its end, or nothing but the mass where the run keeps it: ``held``), ``restore_mass`` (the mass the start held put back after the end's ∇⁴: the float32
-  state's mass fixer);
+  at its end, or nothing where the run keeps it: ``held``), ``restore_mass`` (the mass to keep
+  put back after the end's ∇⁴: the float32 state's mass fixer);
 - **the implicit split**: ``implicit_terms`` (L, the linear gravity-wave terms about a mean depth,
   a ``GravityWaveOperator``) and ``implicit_inverse`` ((I − aL)⁻¹, a ``HelmholtzSolver`` about it),
   which the steppers that treat L apart ask for and do not build;

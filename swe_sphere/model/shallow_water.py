@@ -106,10 +106,10 @@ class ShallowWater:
         and the ∇⁴ are computed in (``model.precision``: under "float32" the state, its updates
         and every sum stay float64; under "float32_state" an explicit Runge–Kutta step holds its
         state and stages in float32 too, ``state_dtype``: ``model.precision``'s note).
-    compensated : under "float32_state", whether a step's float32 increment is added to a
-        float64 state the run holds between steps (True, the default: compensated, converted at
-        each step's two ends), or the run holds the float32 state from step to step (False:
-        ``held``, ``kernels.departure``); unread otherwise.
+    compensated : under "float32_state", whether the run holds the float32 state from step to
+        step (False, the default: ``held``, ``kernels.departure``), or a float64 state between
+        steps, each step's float32 increment added to it in float64 (True: compensated, converted
+        at each step's two ends); unread otherwise.
     mass_fixer : under "float32_state", whether a step's end puts back the mass ∫h its start
         held (True, the default: ``model.mass_fixer``); unread otherwise.
     depth : a float32 tendency's and ∇⁴'s reference depth H₀ (m; ``precision.TendencyArrays``): None, 0
@@ -176,7 +176,7 @@ class ShallowWater:
         topology=None,
         forcing=None,
         precision="float64",
-        compensated=True,
+        compensated=False,
         mass_fixer=True,
         depth=None,
         tracers=0,
@@ -548,13 +548,12 @@ class ShallowWater:
     def to_step_state(self, x: wp.array2d, y: wp.array2d) -> None:
         """y (3, N, ``state_dtype``) = the state a step's stages carry of x (3, N float64): u, v
         and h − H₀ rounded once to float32 (``kernels.departure.to_departure``); x's mass taken
-        for ``from_step_state`` to put back (``mass_fixer``). y is x where the run keeps the
-        float32 state (``held``): its mass taken at its first step alone, and kept."""
-        if y is not x:
-            self.launches.run_lanes(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
-        # a kept float32 state's mass taken once, at its first step (a restart's put back: ``members``):
-        # a step's uniform depth below float32's spacing is lost, so each step's start would drift
-        if self.mass_fixer is not None and (y is not x or not self.mass_fixer.taken):
+        for ``from_step_state`` to put back (``mass_fixer``). Nothing where y is x (the run keeps
+        the float32 state: ``held``, whose mass is taken as the run's state is set, not in a step)."""
+        if y is x:
+            return
+        self.launches.run_lanes(departure.to_departure, x, f64(self.tendency_arrays.depth), y)
+        if self.mass_fixer is not None:
             self.mass_fixer.measure(x)
 
     def from_step_state(self, y: wp.array2d, x: wp.array2d) -> None:

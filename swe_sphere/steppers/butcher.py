@@ -441,7 +441,7 @@ def _express(target, k: int, sources: dict):
     return [arrays[:2] + ([(x[-1], "k")] if x[-1] else [])] + [[(Fraction(1), None), t] for t in arrays[2:]]
 
 
-def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
+def stage_form(A, b, c, d=None, whole_partials: bool = False) -> tuple[tuple, tuple]:
     """(buffers, stages) for the explicit table (A, b, c) (Fractions): the buffers'
     names, and per stage (c, the buffer whose RHS F is evaluated, updates), each
     update (out, terms) with out = Σ a·src over two or three (a, src) terms, in
@@ -467,7 +467,12 @@ def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
     own; without d the form is the one of before there were pairs (the same bits).
 
     The arrays' weights are floats that keep a constant state exactly (``constant_keeping``:
-    each combination's x(n) part exactly its exact one, 1 for every Y_i and x(n+1))."""
+    each combination's x(n) part exactly its exact one, 1 for every Y_i and x(n+1)).
+
+    ``whole_partials`` (the float32 state's stages, ``runge_kutta.ExplicitRK``): each partial sum
+    of a chain holds the whole combination's x(n) part (``_whole_partials``), and each link's
+    weights keep it, so that a constant state stays constant through every link however each
+    is rounded; False: partial sums of the combination's first terms (the float64 bits)."""
     s, n = len(b), len(b) + 1
     Y = [[Fraction(1), *A[i]] for i in range(s)]
     Z = [Fraction(1), *b]
@@ -494,6 +499,10 @@ def stage_form(A, b, c, d=None) -> tuple[tuple, tuple]:
         for w in order:
             target, links = writes[w]
             out = outs[w]
+            chain = _whole_partials(links, out, target[0], content) if whole_partials and len(links) > 1 else None
+            if chain is not None:
+                updates += [(out, terms) for terms in chain]
+                continue
             arrays = [(a, src) for link in links for a, src in link if src not in ("k", None)]
             weights = iter(constant_keeping([a for a, _ in arrays], [content[src][0] for _, src in arrays]))
             for link in links:
@@ -526,6 +535,31 @@ def constant_keeping(weights, scales) -> list[float]:
         if Fraction(float(rest / scales[m])) == rest / scales[m]:
             return [float(rest / scales[m]) if i == m else f for i, f in enumerate(floats)]
     return floats
+
+
+def _whole_partials(links: list, out: str, whole: Fraction, content: dict) -> list[tuple] | None:
+    """A chain's links (``_express``: Q₁ = a₀s₀ + a₁s₁ + qF, then Q_m = Q_(m−1) + a_m s_m) as
+    links whose partial sums each hold the combination's x(n) part ``whole`` S: R_m = (S/P_m)·Q_m,
+    P_m the x(n) part of Q_m (R₁'s weights the first link's times S/P₁, then R_m = (P_(m−1)/P_m)·R_(m−1)
+    + (S/P_m)·a_m s_m), each link's weights kept as ``constant_keeping`` keeps them. A float32
+    partial sum of part P_m ≠ S rounds C·P_m, which the next link does not give back (bs32's
+    s3 = (x + 4s₁ + 4qF)/9 + 4s₂/9: C·5/9 rounded): a constant state drifted by a float32 spacing
+    a step. The links' (terms) in order; None where the whole or a partial part is 0 (the
+    chain summed as it is)."""
+    first, *rest = links
+    scale = {src: content[src][0] for link in links for _, src in link if src not in ("k", None)}
+    parts = [sum(a * scale[src] for a, src in first if src != "k")]
+    for (_, _), (a, src) in rest:
+        parts.append(parts[-1] + a * scale[src])
+    if whole == 0 or any(p == 0 for p in parts):
+        return None
+    arrays = [(a * whole / parts[0], src) for a, src in first if src != "k"]
+    weights = iter(constant_keeping([a for a, _ in arrays], [scale[src] for _, src in arrays]))
+    chain = [tuple((a * whole / parts[0] if src == "k" else next(weights), src) for a, src in first)]
+    for m, ((_, _), (a, src)) in enumerate(rest, start=1):
+        w = constant_keeping([parts[m - 1] / parts[m], a * whole / parts[m]], [whole, scale[src]])
+        chain.append(((w[0], out), (w[1], src)))
+    return chain
 
 
 def _writes(y, rest, k: int, content: dict, kept: list) -> list:

@@ -51,13 +51,16 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     kgu35's combinations are their Shu–Osher forms; RK4's take one buffer and one
     combination fewer than its accumulator form).
 
-    Under the model's ``precision = "float32_state"`` the stages run on a float32 state y
-    (u, v, h − H₀: ``ShallowWater.to_step_state`` of x at the step's start) in float32
-    buffers, and the step's end gives y back to x (``ShallowWater.from_step_state``: compensated)
-    before the ∇⁴, which acts on x as under "float32"; after it the mass fixer puts back the mass
-    x held at the start (``ShallowWater.restore_mass``). Where the run keeps the float32 state
-    between steps (``ShallowWater.held``, not compensated), x is y: the stages step it in place,
-    and the ∇⁴ acts on it on its steps (``ShallowWater.hyperviscosity``).
+    Under the model's ``precision = "float32_state"`` the stages run on a float32 state y (u, v,
+    h − H₀) in float32 buffers, each chained combination's partial sums holding the whole of the
+    state (``butcher.stage_form``'s ``whole_partials``: a constant state kept to the bit). Where
+    the run keeps the float32 state between steps (``ShallowWater.held``, the default), x is y:
+    the stages step it in place, the ∇⁴ acts on it on its steps (``ShallowWater.hyperviscosity``)
+    and the mass fixer puts back the mass taken as the run's state was set
+    (``ShallowWater.restore_mass``). Compensated (a float64 x between steps), y is
+    ``ShallowWater.to_step_state`` of x at the step's start, which takes x's mass, and the step's
+    end adds y's increment back to x (``ShallowWater.from_step_state``) before the ∇⁴, which acts
+    on x as under "float32", and the fixer.
     """
 
     explicit = capturable = variable_dt = differentiable = True
@@ -72,8 +75,10 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
         super().__init__(model, dt, options)
         table = self.table()
         estimate = table.estimate
-        buffers, self._form = stage_form(table.A_E, table.b_E, table.c, None if estimate is None else estimate[0])
         dtype = model.state_dtype
+        # a float32 state's chained combinations hold their whole x(n) part in each partial sum
+        d, whole = None if estimate is None else estimate[0], dtype is not f64
+        buffers, self._form = stage_form(table.A_E, table.b_E, table.c, d, whole_partials=whole)
         self._buffers = {name: work_array(self, dtype) for name in buffers}
         # the float32 state the stages step (None: they step x itself, float64 or the float32 state
         # the run keeps: ``model.held``)

@@ -95,8 +95,10 @@ def test_the_float32_state_is_carried_by_the_explicit_runge_kutta_steppers_alone
     """``precision = "float32_state"``: a step's state and stages in float32, which only the
     explicit Runge-Kutta engine carries (``Described.float32_state_refusal``): the others refused
     in one line naming the value and the stepper, and so is step control (its estimate is read in
-    float64); ``numerics.compensated`` and ``numerics.mass_fixer`` read with it, true by default and
-    left out of the record."""
+    float64); ``numerics.compensated`` (false by default: the float32 state kept between steps;
+    written in its record either way, a record without it being from when true was the default)
+    and ``numerics.mass_fixer`` (true by default, left out of the record) read with it; each
+    record reads back as its scene."""
     carrying = sorted(name for name, cls in STEPPERS.items() if cls.float32_state_refusal is None)
     assert {"rk4", "ssprk3", "kgu35", "rk43"} <= set(carrying) and "leapfrog" not in carrying
     for name in carrying:
@@ -115,9 +117,13 @@ def test_the_float32_state_is_carried_by_the_explicit_runge_kutta_steppers_alone
             overrides={"time.control": "error", "time.rtol": 1e-6},
         )
     scene = load_scene("tc2_steady", ne=2, precision="float32_state")
-    assert scene.compensated and "compensated" not in scene.as_dict()
-    plain = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.compensated": False})
-    assert not plain.compensated and plain.as_dict()["compensated"] is False
+    mixed = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.compensated": True})
+    assert not scene.compensated and scene.as_dict()["compensated"] is False
+    assert mixed.compensated and mixed.as_dict()["compensated"] is True
+    assert scene_from_dict(scene.as_dict()) == scene and scene_from_dict(mixed.as_dict()) == mixed
+    old = {k: v for k, v in scene.as_dict().items() if k != "compensated"}  # written before the flip
+    assert scene_from_dict(old).compensated
+    assert "compensated" not in load_scene("tc2_steady", ne=2, precision="float32").as_dict()
     assert scene.mass_fixer and "mass_fixer" not in scene.as_dict()
     free = load_scene("tc2_steady", ne=2, precision="float32_state", overrides={"numerics.mass_fixer": False})
     assert not free.mass_fixer and free.as_dict()["mass_fixer"] is False

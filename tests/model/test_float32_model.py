@@ -125,7 +125,8 @@ def test_a_float32_run_keeps_float64_s_error_and_mass():
 def test_a_float32_run_continues_bitwise(tmp_path, precision):
     """A float32 run (mixed, or its state in float32) stopped at day 0.1 and continued to 0.2
     ends with the uninterrupted run's bits: the restart keeps its precision (the run file says
-    which), and the float64 state between steps is the whole of what a step starts from."""
+    which), and the state between steps (float64, or the float32 state kept from step to step
+    with its fixer's mass) is the whole of what a step starts from."""
     common = ["run", "tc5_mountain", "--ne", "2", "--stepper", "kgu35", "--precision", precision, "--no-progress"]
     assert main([*common, "--days", "0.2", "--output", str(tmp_path / "whole.nc")]) == 0
     half = ["--days", "0.1", "--restart-every", "0.1", "--output", str(tmp_path / "half.nc")]

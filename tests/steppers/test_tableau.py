@@ -153,12 +153,17 @@ def test_built_in_tables_record_as_few_combinations_as_the_built_ins(name):
         ]
 
 
-def test_stage_form_of_random_tables_forms_every_stage():
+@pytest.mark.parametrize("whole_partials", [False, True])
+def test_stage_form_of_random_tables_forms_every_stage(whole_partials):
     """Random explicit tables (2..7 stages, dense and sparse rows): replaying the
     recorded updates on coefficient vectors over (x(n), Δt K_1, ..., Δt K_s), each
     stage's input is its Y_i and the state ends as x(n+1) (to round-off); at most two
-    arrays and F once per update (chains where a row needs more)."""
+    arrays and F once per update (chains where a row needs more). With ``whole_partials``
+    (the float32 state's form) every link of a chain whose partial sums could hold its x(n) part
+    (nonzero, as every Y_i's and x(n+1)'s) holds it exactly, from its float weights: a partial
+    sum is never a fraction of the state."""
     rng = np.random.default_rng(33)
+    held_whole = 0  # chains whose partial sums hold their whole x(n) part
     for trial in range(60):
         s = int(rng.integers(2, 8))
         A = [
@@ -171,10 +176,11 @@ def test_stage_form_of_random_tables_forms_every_stage():
             for i in range(s)
         ]
         b = [Fraction(int(rng.integers(-4, 5)), int(rng.integers(1, 6))) for _ in range(s)]
-        buffers, stages = stage_form(A, b, [sum(row) for row in A])
+        buffers, stages = stage_form(A, b, [sum(row) for row in A], whole_partials=whole_partials)
         held = {"x": np.eye(s + 1)[0]}
         size = {"x": 1.0}  # Σ |a|·size of what a buffer was summed from: the scale of its roundings
         part = {"x": Fraction(1)}  # each buffer's multiple of x(n), exactly, from the float weights
+        chains = []  # each combination's x(n) parts, link by link
         for j, (_, arg, updates) in enumerate(stages):
             atol = roundoff.bound(4, size[arg])  # a weight's rounding, the others' moved onto one (once each), sums
             np.testing.assert_allclose(held[arg], [1, *map(float, A[j])], rtol=0, atol=atol, err_msg=f"{trial} {j}")
@@ -188,10 +194,19 @@ def test_stage_form_of_random_tables_forms_every_stage():
                 held[out] = sum(float(a) * (np.eye(s + 1)[j + 1] if src == "k" else held[src]) for a, src in terms)
                 size[out] = sum(abs(float(a)) * (1.0 if src == "k" else size[src]) for a, src in terms)
                 part[out] = sum(Fraction(a) * part[src] for a, src in terms if src != "k")
+                if chains and chains[-1][0] == out and terms[0][1] == out and terms[1][1] != "k":  # a link
+                    chains[-1][1].append(part[out])
+                else:
+                    chains.append((out, [part[out]]))
         atol = roundoff.bound(4, size["x"])
         np.testing.assert_allclose(held["x"], [1, *map(float, b)], rtol=0, atol=atol, err_msg=str(trial))
         assert part["x"] == 1
         assert set(held) <= {"x", *buffers}
+        if whole_partials:  # a chain's parts all its whole one, but where that or a partial one is 0
+            chained = [parts for _, parts in chains if len(parts) > 1]  # (0 exactly: its float weights' ulps)
+            assert all(len(set(parts)) == 1 or min(map(abs, parts)) < 2**-40 for parts in chained), str(trial)
+            held_whole += sum(len(set(parts)) == 1 for parts in chained)
+    assert held_whole > 0 or not whole_partials
 
 
 @pytest.mark.parametrize("name", [k for k in EXPLICIT])

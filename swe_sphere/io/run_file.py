@@ -508,12 +508,14 @@ def close_open_runs(failed: str) -> None:
     release_held_locks()  # a lock taken ahead (``HeldLock``) for a run that never wrote
 
 
-def member_states(path, day: float | None, members: int, nunique: int, where: str) -> np.ndarray:
-    """(members, 3, nunique) float64: u, v (m s⁻¹) and h (m) of every member of the ensemble's run
-    file ``path`` (``RunWriter`` with ``members``) at model day ``day`` (None: the file's last time)
-    on the unique nodes, as written. ``ArgumentError`` beginning ``where`` for a file that cannot
-    be read, is not an ensemble's run file (no h on time, member, ncol), holds another member
-    count or another grid's ``nunique`` nodes, or not ``day``."""
+def member_states(path, day: float | None, members: int, nunique: int, where: str, tracers=()) -> tuple:
+    """(states, q): states (members, 3, nunique) float64, u, v (m s⁻¹) and h (m) of every member
+    of the ensemble's run file ``path`` (``RunWriter`` with ``members``) at model day ``day``
+    (None: the file's last time) on the unique nodes, as written; q {name: (members, nunique)
+    float64} the mixing ratio (1) of each of ``tracers`` (names) the file holds on (time, member,
+    ncol) there. ``ArgumentError`` beginning ``where`` for a file that cannot be read, is not an
+    ensemble's run file (no h on time, member, ncol), holds another member count or another grid's
+    ``nunique`` nodes, or not ``day``."""
     try:
         ds = netCDF4.Dataset(path)
     except (OSError, TypeError) as err:
@@ -531,4 +533,6 @@ def member_states(path, day: float | None, members: int, nunique: int, where: st
         at = last if day is None else np.flatnonzero(np.isclose(days, day, rtol=0, atol=1e-9))
         if at.size == 0:
             raise ArgumentError(f"{where}: no output at day {day} (it holds {', '.join(f'{d:g}' for d in days)})")
-        return np.stack([np.asarray(ds[name][at[0]], dtype=np.float64) for name in "uvh"], axis=1)
+        states = np.stack([np.asarray(ds[name][at[0]], dtype=np.float64) for name in "uvh"], axis=1)
+        held = [name for name in tracers if name in ds.variables and ds[name].dimensions == ds["h"].dimensions]
+        return states, {name: np.asarray(ds[name][at[0]], dtype=np.float64) for name in held}

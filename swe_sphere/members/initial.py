@@ -87,17 +87,29 @@ class MemberFile:
     """Members that start from an ensemble's run file (``Simulation.run`` with ``members``, ``swe-sphere run
     --members``): member k from the file's member k, its u, v, h at model day ``day`` (None:
     the file's last time) on the grid's unique nodes, as they were written (a run file that
-    was not compressed gives the states' bits); the scene's tracers start from its [tracers]
-    fields (``initial_states``), not the file's q. ``path`` a str or os.PathLike."""
+    was not compressed gives the states' bits); each of the scene's tracers from the file's q of
+    that name where it holds one (the run of an ensemble with that tracer), else from its
+    [tracers] field. ``path`` a str or os.PathLike."""
 
     path: object
     day: float | None = None
 
-    def apply(self, grid: CubedSphere, members: int) -> np.ndarray:
-        """(members, 3, n) on ``grid``'s element-local nodes. ``ArgumentError`` naming
-        ``initial`` for a file that cannot be read, is not an ensemble's run file, holds
-        another member count or grid, or not ``day`` (``io.run_file.member_states``)."""
-        return member_states(self.path, self.day, members, grid.nunique, f"initial: {self.path}")[..., grid.gid]
+    def apply(self, grid: CubedSphere, members: int, scene=None) -> np.ndarray:
+        """(members, 3 + K, n) on ``grid``'s element-local nodes: u, v, h and the masses h·q of
+        the K tracers of ``scene`` (a ``Scene``'s [tracers]; None: none), q the file's or the
+        scene's field (``Scene.tracer_fields``). ``ArgumentError`` naming ``initial`` for a file
+        that cannot be read, is not an ensemble's run file, holds another member count or grid,
+        or not ``day`` (``io.run_file.member_states``)."""
+        names = () if scene is None else tuple(name for name, _ in scene.tracers)
+        states, held = member_states(self.path, self.day, members, grid.nunique, f"initial: {self.path}", names)
+        states = states[..., grid.gid]
+        if not names:
+            return states
+        q = [
+            held[name][:, grid.gid] if name in held else np.broadcast_to(field(grid.lat, grid.lon), states[:, 2].shape)
+            for name, field in zip(names, scene.tracer_fields(), strict=True)
+        ]
+        return np.concatenate([states, states[:, 2:3] * np.stack(q, axis=1)], axis=1)
 
 
 # what a member's own model holds (``Variants.own_model``): its gravity and ∇⁴ coefficients
@@ -206,14 +218,15 @@ def initial_states(initial, grid: CubedSphere, case, members: int, cases=None, s
     ``grid`` from ``case``'s state, checked (``checked_states``): each member's u, v, h with a row of
     mass h·q for each of the K tracers of ``scene`` (its [tracers]; None: none), q its
     ``tracer_fields()`` for every member (``cases.tracers.with_tracers``, as a single run's start),
-    or an array's own rows hq where it gives them ((N, 3 + K, n): a restart file's). ``ArgumentError``
+    a ``MemberFile``'s q where the file holds it, or an array's own rows hq where it gives them
+    ((N, 3 + K, n): a restart file's). ``ArgumentError``
     naming ``initial`` for another kind or shape, or Variants whose surface heights differ."""
     nq = 0 if scene is None else len(scene.tracers)
     if initial is None or isinstance(initial, Perturbation):
         state = np.stack(case.initial(grid.lat, grid.lon))
         states = np.repeat(state[None], members, axis=0) if initial is None else initial.apply(grid, state, members)
     elif isinstance(initial, MemberFile):
-        states = initial.apply(grid, members)
+        states = initial.apply(grid, members, scene)
     elif isinstance(initial, Variants):
         hs = case.hs(grid.lat, grid.lon)
         for k, member in enumerate(cases):

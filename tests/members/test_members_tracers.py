@@ -63,3 +63,22 @@ def test_members_with_tracers_continue_from_their_restart_file_bitwise(tmp_path,
     rest.run(tmp_path / "rest.nc")
     assert rest.states().shape == (3, 5, whole.grid.nnodes)
     assert np.array_equal(rest.states(), whole.states())
+
+
+def test_members_from_an_ensemble_s_run_file_take_its_tracers(tmp_path):
+    """``MemberFile``: each tracer the file holds starts from member k's q there (hq = h·q, both
+    as written: the file's last output), one it does not from the scene's [tracers] field."""
+    from swe_sphere.ensemble import MemberFile
+
+    first = members_run(scene(0.25), 2, Perturbation(2.0, seed=5), device="cpu")
+    first.run(tmp_path / "e.nc")
+    h, marker = read(tmp_path / "e.nc", "h", "marker")
+    wider = {"names": ["marker", "dye"], "initial": ["latitude", "constant"]}  # dye: not in the file
+    again = load_scene("galewsky", ne=2, np_=4, dt=900.0, days=0.25, tracers=wider)
+    starts = members_run(again, 2, MemberFile(tmp_path / "e.nc"), device="cpu").states()
+    gid, lat = first.grid.gid, np.degrees(first.grid.lat)
+    for k in range(2):
+        assert np.array_equal(starts[k, 2], h[-1, k][gid])
+        assert np.array_equal(starts[k, 3], h[-1, k][gid] * marker[-1, k][gid])  # the file's moved marker
+        assert np.array_equal(starts[k, 4], starts[k, 2])  # the dye from the scene: q = 1
+    assert np.abs(marker[-1, 0][gid] - lat).max() > 1e-3  # the file's q is not the scene's initial latitude

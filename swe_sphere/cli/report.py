@@ -274,6 +274,25 @@ def summary(r, sim) -> None:
                 f"  {vs} vorticity l2 {d['ref_l2_vorticity_eq83']:.3e} (Williamson eq. 83: the model's vorticity "
                 f"against {name}'s own at the nodes, as other models publish it)"
             )
+        finer = _finer_reference(sim.scene, name)
+        if finer:
+            print(f"  {'reference':11s} {name}, the scene's default; {finer}")
     print(f"  output      {r.output}")
     if r.checkpoint is not None:
         print(f"  restart     {r.checkpoint}")
+
+
+def _finer_reference(scene, name: str) -> str:
+    """Where a run is scored against its case's default reference, truncation ``name``, and a
+    finer one is bundled (Galewsky's, TC5's and TC6's T341): the words that say which and how to
+    score against it ("the bundled T341 stores day 6: -s case.reference=T341"); else ""."""
+    if scene.reference is not None:  # chosen: nothing to say
+        return ""
+    from ..cases.reference import reference_path, stored_days, truncations
+
+    case = scene.make_case()
+    finer = [t for t in truncations(case) if int(t[1:]) > int(name[1:])]
+    if not finer:
+        return ""
+    days = ", ".join(f"{day:g}" for day in stored_days(reference_path(case, finer[-1])))
+    return f"the bundled {finer[-1]} stores day{'s' if ',' in days else ''} {days}: -s case.reference={finer[-1]}"

@@ -78,10 +78,14 @@ def test_the_control_line_names_the_first_step_dt_max_clamps(tmp_path, capsys):
 def test_summary_quotes_the_last_output_time_the_reference_stores(tmp_path, capsys, days, quoted, extra):
     """T213 stores days 0, 1, 2, 5, 10 and 15: a 1.25-day run quotes its day-1 errors (labelled,
     under error control too, whose steps are not 1800 s), a 0.25-day run says there is none (not
-    "nan"); t = 0 is never quoted."""
+    "nan"); t = 0 is never quoted. Either says plainly that T213 is the scene's default and where
+    the finer bundled T341 is."""
     out = tmp_path / "r.nc"
     assert main(["run", "tc5_mountain", *TINY, "--dt", "1800", "--days", str(days), *extra, "--output", str(out)]) == 0
-    lines = [line for line in capsys.readouterr().out.splitlines() if "vs T213" in line]
+    printed = capsys.readouterr().out.splitlines()
+    finer = "  reference   T213, the scene's default; the bundled T341 stores days 1, 15: -s case.reference=T341"
+    assert finer in printed
+    lines = [line for line in printed if "vs T213" in line]
     assert not any("nan" in line for line in lines)
     if quoted is None:
         assert lines == ["  vs T213     none: no output time after t = 0 is one T213 stores (days 0, 1, 2, 5, 10, 15)"]

@@ -8,8 +8,11 @@ alternating rounds (the two never apart by more than one round's drift):
 1. the RHS (``model.rhs``: the tendency and its DSS) in element-local points a second;
 2. a step of the scene's stepper (its stages' ``rhs_update``, the ∇⁴ every k steps as the scene
    says), ms;
-3. the bytes of the device arrays the run holds (the state, the model's, its operators',
-   topology's, ∇⁴'s and tendency's arrays and the stepper's, each array once);
+3. the bytes of the device arrays a run holds (``run_arrays``): of the Warp allocations alive
+   after the scene's ``Simulation`` (as ``swe-sphere run`` builds it: its members, model, stepper,
+   scorer) has taken a step and written its run file at t = 0 and at the step (the diagnostics'
+   vorticity and divergence), those the run made, each allocation once (a view not counted
+   again); ``--arrays`` lists them by owner, float type, shape and bytes;
 
 then, with ``--peak-ne``, the peak resident memory of a short ``swe-sphere run`` of TC5 in a
 child process in each precision. Medians of ``--rounds``; ``--clock cpu`` (the default) times
@@ -35,6 +38,8 @@ conversion); ``float32_state:compensated`` holds the float64 state between steps
 from __future__ import annotations
 
 import argparse
+import collections
+import gc
 import os
 import statistics
 import subprocess
@@ -57,41 +62,52 @@ GRIDS = {
 PRECISIONS = ("float64", "float32")  # the default; ``--precisions`` adds "float32_state" (issue 128)
 
 
-def device_bytes(*owners) -> int:
-    """Bytes of the distinct Warp arrays among ``owners`` (a state) and held by them and their
-    attributes one level down (a model's operators, topology, ∇⁴ and tendency arrays; a
-    stepper's buffers), in lists, tuples and dicts too (a stepper's buffers by name, the ∇⁴'s
-    geometry)."""
-    seen: dict[int, int] = {}
+def allocations() -> dict:
+    """The Warp arrays alive that own their memory (not views), by address."""
+    return {a.ptr: a for a in gc.get_objects() if type(a) is wp.array and a.ptr and a.deleter is not None}
 
-    def note(value):
-        if isinstance(value, wp.array) and value.ptr and value.capacity:
-            seen.setdefault(value.ptr, value.capacity)
 
-    def walk(obj, depth):
-        values = (
-            obj._asdict().values()
-            if hasattr(obj, "_asdict")
-            else vars(obj).values()
-            if hasattr(obj, "__dict__")
-            else []
-        )
-        for value in values:
-            note(value)
-            if isinstance(value, (list, tuple, dict)):
-                for v in value.values() if isinstance(value, dict) else value:
-                    note(v)
-            elif (
-                depth
-                and not isinstance(value, (wp.array, np.ndarray, str, int, float))
-                and (type(value).__module__.startswith("swe_sphere") or hasattr(value, "_asdict"))
-            ):
-                walk(value, depth - 1)
+def owners(root, name: str) -> dict:
+    """Address -> the first attribute path from ``root`` (called ``name``) to a Warp array there,
+    breadth first through swe_sphere's objects, named tuples, lists, tuples and dicts."""
+    found, seen, queue = {}, set(), collections.deque([(name, root)])
+    while queue:
+        path, obj = queue.popleft()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, wp.array):
+            found.setdefault(obj.ptr, path)
+        elif isinstance(obj, dict):
+            queue.extend((f"{path}[{k!r}]", v) for k, v in obj.items())
+        elif isinstance(obj, (list, tuple)) and not hasattr(obj, "_asdict"):
+            queue.extend((f"{path}[{k}]", v) for k, v in enumerate(obj))
+        elif hasattr(obj, "_asdict"):
+            queue.extend((f"{path}.{k}", v) for k, v in obj._asdict().items())
+        elif type(obj).__module__.startswith("swe_sphere") and hasattr(obj, "__dict__"):
+            queue.extend((f"{path}.{k}", v) for k, v in vars(obj).items())
+    return found
 
-    for owner in owners:
-        note(owner)
-        walk(owner, 2)
-    return sum(seen.values())
+
+def run_arrays(name: str, ne: int, np_: int, precision: str) -> list[tuple]:
+    """(bytes, float type, shape, owner) of each Warp array a run of scene ``name`` at ne, np in
+    ``precision`` (``:kept``: ``numerics.compensated = false``) holds, largest first: those alive
+    after its ``Simulation`` has taken a step and written its run file (t = 0 and the step) that
+    it made (``allocations``), an owner the attribute path from the simulation (``owners``; "?"
+    for one only a recorded launch holds)."""
+    from swe_sphere import Simulation
+
+    precision, _, layout = precision.partition(":")
+    before = set(allocations())
+    options = {"numerics.compensated": False} if layout == "kept" else {}
+    sim = Simulation(name, device="cpu", progress=False, threads=1, ne=ne, np=np_, precision=precision, **options)
+    with tempfile.TemporaryDirectory() as tmp:
+        sim.run(Path(tmp) / "run.nc", until_step=1)
+    gc.collect()
+    where = owners(sim, "sim")
+    held = [(a.capacity, getattr(a.dtype, "__name__", str(a.dtype)), a.shape, where.get(ptr, "?"))
+            for ptr, a in allocations().items() if ptr not in before]  # fmt: skip
+    return sorted(held, key=lambda row: -row[0])
 
 
 def float32_state(model, x):
@@ -184,6 +200,7 @@ def main(argv=None):
         help="float64 first, each timed against it (default %(default)s)",
     )
     ap.add_argument("--results", default="precision_speed", help="results/STEM.json (default %(default)s)")
+    ap.add_argument("--arrays", action="store_true", help="list each array a run holds (``run_arrays``)")
     args = ap.parse_args(argv)
     quiet_warp()  # quietly
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
@@ -210,7 +227,10 @@ def main(argv=None):
             n = built["float64"][0].N
             rate = {p: n / statistics.median(rhs[p]) / 1e6 for p in precisions}
             ms = {p: 1e3 * statistics.median(step[p]) for p in precisions}
-            mib = {p: device_bytes(*built[p]) / 2.0**20 for p in precisions}
+            del built, calls
+            # a run's arrays: the rows layout is no scene's (the CLI runs the shipped lanes)
+            held = {p: run_arrays(name, ne, np_, p) for p in precisions if not p.endswith(":rows")}
+            mib = {p: sum(row[0] for row in held.get(p, [])) / 2.0**20 or float("nan") for p in precisions}
             row = dict(nodes=n, rhs_mpts=rate, step_ms=ms, device_mib=mib)
             figures[key] = row
             cells = [key, str(n)]
@@ -218,7 +238,11 @@ def main(argv=None):
                 cells.append(f"{figure['float64']:{fmt}}")
                 cells += [f"{figure[p]:{fmt}} ({figure[p] / figure['float64']:.2f})" for p in lower]
             print("| " + " | ".join(cells) + " |")
-            del built, calls
+            if args.arrays:
+                for p, rows in held.items():
+                    print(f"{key} {p}: {len(rows)} arrays, {mib[p]:.2f} MiB")
+                    for size, dtype, shape, owner in rows:
+                        print(f"  {size / 2.0**20:9.3f} MiB  {dtype:>8}  {str(shape):>16}  {owner}")
         for ne in args.peak_ne:
             peaks = {p: child_peak_rss(ne, p) for p in precisions if ":" not in p}  # the CLI runs the shipped lanes
             figures[f"peak_rss_tc5_ne{ne}"] = peaks

@@ -151,7 +151,6 @@ class Scorer:
         self.root = topology.comm.rank == 0
         self.reference = Reference(reference) if reference is not None and self.root else None
         self.reference_days = topology.bcast(self.reference.days if self.reference is not None else None)
-        self._scratch = model.new_state()  # a wind to differentiate
         self._last = None  # (day, the reference there on the whole grid): the start is scored twice
         self.node_regions = None
         if topology.grid.mesh is not None:  # the equiangular cube is one resolution
@@ -170,10 +169,7 @@ class Scorer:
 
     def _rotation_divergence(self, u, v) -> np.ndarray:
         """(2, N): ``rotation_divergence`` on this rank's nodes, before the gather."""
-        self._scratch.assign(np.stack([u, v, np.zeros_like(u)]))
-        return np.stack(
-            [self.model.operators.vorticity(self._scratch), self.model.operators.wind_divergence(self._scratch)]
-        )
+        return self.model.operators.rotation_divergence(u, v)
 
     def wind_error_decomposition(self, u, v, u_true, v_true, regions: bool = False) -> dict:
         """``l2_vorticity``, ``l2_divergence``: the wind error split into its

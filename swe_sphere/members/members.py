@@ -117,8 +117,8 @@ class Members:
         build = units.shared_unit if self.layout == "shared" else units.own_units
         self.units, self.copies, one = build(scene, case, own, *parts)
         # hs and f on the host (held, n), read at every output time (the grid's and the members' alone); g a member
-        self.hs = self.each(lambda u: u.model.operators.hs.numpy())
-        self.fcor = self.each(lambda u: u.model.operators.fcor.numpy())
+        self.hs = self.each(lambda u: u.model.operators.values("hs").copy())
+        self.fcor = self.each(lambda u: u.model.operators.values("fcor").copy())
         self.g, self.nnodes = [u.model.g for u in self.units for _ in range(u.members)], grid.nnodes
         one = one or ShallowWater.from_scene(scene, grid, case, **models)  # one member's: the wind errors' ζ and δ
         # each variant's own truth, an exact solution (a reference holds the scene's values only)
@@ -224,7 +224,7 @@ class Members:
 
     def divergence(self) -> np.ndarray | None:
         """Every member's divergence of the wind (N, n), DSS'd (s⁻¹), on rank 0 (None elsewhere; collective)."""
-        return self.whole(lambda u: u.model.operators.wind_divergence(u.model.held.float64(u.x)))
+        return self.whole(lambda u: u.model.operators.wind_divergence(u.model.held.float64(u.x, once=True)))
 
     def gather_fields(self, x=None, divergence: bool = False) -> WholeFields:
         """u, v, h, the vorticity and (``divergence``) the divergence of every member now, or of a
@@ -232,7 +232,7 @@ class Members:
         run's (n,) as its run file holds them (``writers.RunFiles``)."""
 
         def rows(u):
-            y = u.model.held.float64(u.x if x is None else x)  # the run's state in float64 (``model.held``)
+            y = u.model.held.float64(u.x if x is None else x, once=True)  # the run's state in float64 (``model.held``)
             div = [u.model.operators.wind_divergence(y)[None]] if divergence else []
             values = y.numpy()
             return np.concatenate([values[:3], u.model.operators.vorticity(y)[None], *div, values[3:]])

@@ -88,7 +88,7 @@ def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: s
     local = topo.grid
     grid = topo.whole_grid()  # for diagnostics and output: on rank 0 only
     model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo)
-    fcor, hs = model.operators.fcor.numpy(), model.operators.hs.numpy()  # the case's, as the model holds them
+    fcor, hs = model.operators.values("fcor"), model.operators.values("hs")  # the case's, as the model holds them
     whole_fcor, whole_hs = topo.gather(fcor), topo.gather(hs)
     stepper = scene_stepper(scene, model)
     scorer = Scorer(case, model, topo, grid, whole_hs, scene.reference_file)
@@ -138,7 +138,7 @@ def shared_unit(scene, case, own, grid: CubedSphere, starts, backend, threads: i
         one = ShallowWater.from_scene(scene, grid, case, **options)  # λ of one member's operator
         model.hv.use_biharmonic_radius(one.hv.biharmonic_radius())
     if own is not None:  # in place: the launches read it
-        model.operators.fcor.assign(np.concatenate([c.fcor(grid.lat, grid.lon) for _, c in own]))
+        model.operators.set_fcor(np.concatenate([c.fcor(grid.lat, grid.lon) for _, c in own]))
     return [Unit.of(model, scene_stepper(scene, model), starts, backend, graphs)], copies, one
 
 

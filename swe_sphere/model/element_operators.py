@@ -11,11 +11,20 @@ metric terms D, D⁻¹ and metdet (HOMME's ``D``, ``Dinv``, ``metdet``), ``fcor`
 pair of arrays in the model's ``LaunchRecorder`` and replayed (HOMME's ``derivative_mod``
 operators, ``gradient_sphere``, ``divergence_sphere``, ``vorticity_sphere``, with its
 ``bndry_exchange`` DSS).
+
+Where the model's steps read none of the float64 geometry (``on_demand``: a float32 state's steps
+read their float32 copies, ``model.precision``), the device holds it only where something reads
+it: the float64 values stay on the host (``values``: the grid's and the case's), a float type's
+copies are rounded from them (``rounded``), an array a step reads is uploaded on its first read
+and held, and the diagnostics' vorticity and divergence run on copies for one use (on a CPU the
+host values themselves) and work arrays that are let go after: the same kernels and the same
+bits as on held arrays (issue 128: the arrays a float32 run holds).
 """
 
 from __future__ import annotations
 
 import contextlib
+from types import SimpleNamespace
 
 import numpy as np
 import warp as wp
@@ -26,6 +35,13 @@ from .launches import check_updates
 from .transposes import TendencyTranspose
 
 f64 = wp.float64
+
+# the float64 geometry the element kernels read, by name (``ElementOperators.values``): the grid's
+# metric terms and frame, the case's Coriolis parameter and surface height, the topography's −g∇hs
+GEOMETRY = ("D", "Dinv", "metdet", "xyz", "east", "north", "fcor", "hs", "forcing")
+# the work arrays (rows of N) of the operators' element passes; "wind" the diagnostics' input
+# (``rotation_divergence``), made on its first use alone
+WORK = {"scalar": 1, "scalar_dss": 1, "vec_work": 2, "wind": 2}
 
 
 class ElementOperators:
@@ -40,24 +56,75 @@ class ElementOperators:
     Arrays (device, element-local, N the grid's nodes): ``D``, ``Dinv`` (N, 2, 2; m and m⁻¹ per
     reference unit), ``metdet`` (N,), ``dvv`` (np, np), ``dvv_rows`` (the per-element kernels'
     ``dvv`` argument), ``xyz``, ``east``, ``north`` (N, 3; unit sphere), the case's Coriolis
-    parameter ``fcor`` (N,; s⁻¹) and surface height ``hs`` (N,; m), and the work arrays
-    ``scalar`` (1, N), ``scalar_dss`` (1, N) and ``vec_work`` (2, N)."""
+    parameter ``fcor`` (N,; s⁻¹) and surface height ``hs`` (N,; m), with ``g`` (m s⁻²; None: no
+    topography) the "topography" term's ``forcing`` −g∇hs (2, N; m s⁻²), and the work arrays
+    ``scalar`` (1, N), ``scalar_dss`` (1, N) and ``vec_work`` (2, N): uploaded at the build, or
+    with ``on_demand`` each on its first read (the module's note); ``geometry`` the names of those
+    it holds (``GEOMETRY``'s; "forcing" with ``g``), their float64 values on the host ``values``."""
 
-    def __init__(self, grid, topology, launches, per_element: bool, device: str, fcor, hs):
-        def up(a):
-            return wp.array(np.ascontiguousarray(a), dtype=f64, device=device)
-
+    def __init__(
+        self, grid, topology, launches, per_element: bool, device: str, fcor, hs, g=None, on_demand: bool = False
+    ):
         self.grid, self.topology, self.launches, self.per_element = grid, topology, launches, bool(per_element)
+        self.device, self.on_demand = device, bool(on_demand)
         self.static_np = 0 if self.per_element else grid.np
-        self.N = N = grid.nnodes
-        self.D, self.Dinv, self.metdet, self.dvv = up(grid.D), up(grid.Dinv), up(grid.metdet), up(grid.rule.dvv)
+        self.N = grid.nnodes
+        self.dvv = wp.array(np.ascontiguousarray(grid.rule.dvv), dtype=f64, device=device)
         self.dvv_rows = operators.dvv_matrix(grid.rule.dvv)
-        self.xyz, self.east, self.north = up(grid.xyz), up(grid.east), up(grid.north)
-        self.fcor, self.hs = up(fcor), up(hs)
-        self.scalar = wp.zeros((1, N), dtype=f64, device=device)
-        self.scalar_dss = wp.zeros((1, N), dtype=f64, device=device)
-        self.scalar_flat = self.scalar.flatten()
-        self.vec_work = wp.zeros((2, N), dtype=f64, device=device)
+        geometry = (grid.D, grid.Dinv, grid.metdet, grid.xyz, grid.east, grid.north)
+        # the float64 values not yet uploaded (the grid's own arrays, and copies of the case's fields)
+        self._host = {k: np.ascontiguousarray(a, dtype=float) for k, a in zip(GEOMETRY, geometry)}
+        self._host.update(fcor=np.array(fcor, dtype=float), hs=np.array(hs, dtype=float))
+        if g is not None:  # the "topography" term's −g∇hs, the gradient of hs by the element's operator
+            hs2, forcing = self.one_use("hs").reshape((1, self.N)), wp.zeros((2, self.N), dtype=f64, device=device)
+            inputs = [hs2, 0, self.one_use("Dinv"), self.dvv, grid.np, forcing, 0]
+            wp.launch(operators.gradient_sphere, self.N, inputs, device=device)
+            self._host["forcing"] = -float(g) * forcing.numpy()
+        self.geometry = tuple(self._host)  # the names held, on the device or the host
+        if not self.on_demand:  # the steps read them: uploaded now
+            for name in (*self.geometry, "scalar", "scalar_dss", "vec_work"):
+                getattr(self, name)
+
+    def __getattr__(self, name: str):
+        """A float64 device array of ``geometry`` (from its host values, let go then) or a work
+        array of ``WORK``, made on its first read and held from then on (an attribute like the
+        others)."""
+        host = self.__dict__.get("_host", {})
+        if name in host:
+            value = wp.array(host.pop(name), dtype=f64, device=self.device)
+        elif name in WORK:
+            value = wp.zeros((WORK[name], self.N), dtype=f64, device=self.device)
+        else:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        setattr(self, name, value)
+        return value
+
+    def values(self, name: str) -> np.ndarray:
+        """The float64 values of the geometry ``name`` (``GEOMETRY``; ``geometry`` holds it) on the
+        host: the device array's where uploaded (on a CPU a view), else the host's."""
+        return self.__dict__[name].numpy() if name in self.__dict__ else self._host[name]
+
+    def one_use(self, name: str) -> wp.array:
+        """The float64 geometry ``name`` on the device for one use: the held array where there is
+        one, else a copy not kept (on a CPU the host values themselves, no copy)."""
+        if name in self.__dict__:
+            return self.__dict__[name]
+        return wp.array(self._host[name], dtype=f64, device=self.device, copy=False)
+
+    def rounded(self, name: str, dtype) -> wp.array:
+        """The geometry ``name`` as ``dtype``'s kernels read it: under float64 the device array
+        (uploaded on first read), else a copy rounded once from the float64 values (``values``)."""
+        if dtype is f64:
+            return getattr(self, name)
+        return wp.array(self.values(name), dtype=dtype, device=self.device)
+
+    def set_fcor(self, fcor: np.ndarray) -> None:
+        """The Coriolis parameter (N,; s⁻¹) set in place, on the device where uploaded (the
+        launches read it there), else on the host: a shared ensemble's members' own, after the build."""
+        if "fcor" in self.__dict__:
+            self.fcor.assign(np.asarray(fcor, dtype=float))
+        else:
+            self._host["fcor"][:] = fcor
 
     @contextlib.contextmanager
     def hs_as(self, hs: wp.array):
@@ -90,16 +157,17 @@ class ElementOperators:
             operators.gradient_sphere, self.N, [x, row, self.Dinv, self.dvv, self.grid.np, self.vec_work]
         )
 
-    def _element_div(self, x):
-        """The launch of the element-local ∇·v of x's rows 0, 1 into ``scalar``."""
+    def _element_div(self, x, frame=None, vorticity: bool = False):
+        """The launch of the element-local ∇·v (``vorticity``: ζ = k·∇×v) of x's rows 0, 1 into
+        ``scalar``: ``frame``'s (the arrays ``_diagnosed`` passes; None: these operators' own)."""
+        f = self if frame is None else frame
+        metric = f.D if vorticity else f.Dinv
         if self.per_element:
-            return self.launches.elements(
-                operators.divergence_element(self.grid.np),
-                [*map(self.as_rows, (x, self.Dinv, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
-            )
-        return self.launches.nodes(
-            operators.divergence_sphere, self.N, [x, self.Dinv, self.metdet, self.dvv, self.grid.np, self.scalar_flat]
-        )
+            kernel = (operators.vorticity_element if vorticity else operators.divergence_element)(self.grid.np)
+            inputs = [*map(self.as_rows, (x, metric, f.metdet)), self.dvv_rows, self.as_rows(f.scalar.flatten())]
+            return self.launches.elements(kernel, inputs)
+        kernel = operators.vorticity_sphere if vorticity else operators.divergence_sphere
+        return self.launches.nodes(kernel, self.N, [x, metric, f.metdet, self.dvv, self.grid.np, f.scalar.flatten()])
 
     def _build_grad(self, x, row, out):
         return [self._element_grad(x, row), *self.topology.dss(self.vec_work, 1, out)]
@@ -163,29 +231,37 @@ class ElementOperators:
             lambda: self.topology.scatter(y, out, row, rows),
         )
 
+    def _diagnosed(self, key, x, element, names) -> np.ndarray:
+        """The DSS of ``element(x, frame)`` (the launch of an element pass into frame's ``scalar``),
+        (N,) numpy: on the held arrays, recorded under ``key``; ``on_demand``, on a frame for one
+        use (the geometry ``names`` by ``one_use``, its own work arrays), launched once and let go."""
+        if not self.on_demand:
+            build = lambda: [element(x), *self.topology.dss(self.scalar, 1, self.scalar_dss)]  # noqa: E731
+            self.launches.replay(key, (x,), build)
+            return self.scalar_dss.numpy()[0].copy()
+        frame = SimpleNamespace(**{k: self.one_use(k) for k in names})
+        frame.scalar, out = (wp.zeros((1, self.N), dtype=f64, device=self.device) for _ in range(2))
+        for launch in [element(x, frame), *self.topology.dss(frame.scalar, 1, out)]:
+            launch.launch()
+        return out.numpy()[0].copy()
+
     def vorticity(self, x: wp.array2d) -> np.ndarray:
         """Relative vorticity ζ (s⁻¹), (N,) numpy, with the model's operator and a DSS."""
-        self.launches.replay(
-            ("vort", array_key(x)),
-            (x,),
-            lambda: [
-                self.launches.elements(
-                    operators.vorticity_element(self.grid.np),
-                    [*map(self.as_rows, (x, self.D, self.metdet)), self.dvv_rows, self.as_rows(self.scalar_flat)],
-                )
-                if self.per_element
-                else self.launches.nodes(
-                    operators.vorticity_sphere,
-                    self.N,
-                    [x, self.D, self.metdet, self.dvv, self.grid.np, self.scalar_flat],
-                ),
-                *self.topology.dss(self.scalar, 1, self.scalar_dss),
-            ],
-        )
-        return self.scalar_dss.numpy()[0].copy()
+        element = lambda x, frame=None: self._element_div(x, frame, vorticity=True)  # noqa: E731
+        return self._diagnosed(("vort", array_key(x)), x, element, ("D", "metdet"))
 
     def wind_divergence(self, x: wp.array2d) -> np.ndarray:
         """Divergence δ = ∇·v (s⁻¹) of the wind in rows 0, 1 of x, (N,) numpy: the
         operator the model steps with (``divergence``), DSS'd."""
-        self.divergence(x, self.scalar_dss)
-        return self.scalar_dss.numpy()[0].copy()
+        return self._diagnosed(("wind_div", array_key(x)), x, self._element_div, ("Dinv", "metdet"))
+
+    def rotation_divergence(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(2, N) ζ and δ (s⁻¹) of the continuous wind u, v ((N,) each, m s⁻¹, on the host) by
+        ``vorticity`` and ``wind_divergence``: the wind in the work array ``wind``, or
+        ``on_demand`` in a copy for one use."""
+        if self.on_demand:
+            x = wp.array(np.stack([u, v]), dtype=f64, device=self.device, copy=False)
+        else:
+            x = self.wind
+            x.assign(np.stack([u, v]))
+        return np.stack([self.vorticity(x), self.wind_divergence(x)])

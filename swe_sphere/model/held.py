@@ -91,15 +91,21 @@ class HeldState:
         a[2] += self.depth
         return a
 
-    def float64(self, x: wp.array2d) -> wp.array2d:
-        """The float64 state of x on the device: a float64 x itself, or f64(y) + (0, 0, H₀) in
-        the model's one work array (``kernels.departure.from_departure``), overwritten by the next
-        call."""
+    def float64(self, x: wp.array2d, once: bool = False) -> wp.array2d:
+        """The float64 state of x on the device: a float64 x itself, or f64(y) + (0, 0, H₀)
+        (``kernels.departure.from_departure``) in the model's one work array, overwritten by the
+        next call; ``once``: in an array of its own, for one use (a diagnosis at an output time),
+        neither kept nor recorded."""
         if x.dtype is f64:
             return x
+        launches = self.model.launches
+        if once:
+            y = wp.empty(x.shape, dtype=f64, device=x.device)
+            launches.lanes_launch(departure.from_departure, x, f64(self.depth), y).launch()
+            return y
         if self._work is None or self._work.shape != x.shape:
             self._work = wp.zeros(x.shape, dtype=f64, device=x.device)
-        self.model.launches.run_lanes(departure.from_departure, x, f64(self.depth), self._work)
+        launches.run_lanes(departure.from_departure, x, f64(self.depth), self._work)
         return self._work
 
     def store(self, x64: wp.array2d, x: wp.array2d) -> None:

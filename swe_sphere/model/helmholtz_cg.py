@@ -68,7 +68,7 @@ class HelmholtzCG:
         self.r, self.u, self.w, self.p, self.s = (z(nu) for _ in range(5))
         # the metric in the solve's type (``precision.rounded``): the model's own arrays in float64,
         # float32 copies rounded once else; the local copies' masses (the ghosts' follow on a rank)
-        self.Dinv, self.metdet = rounded(model.operators.Dinv, dtype), rounded(model.operators.metdet, dtype)
+        self.Dinv, self.metdet = model.operators.rounded("Dinv", dtype), model.operators.rounded("metdet", dtype)
         self.spheremp, self.rspheremp = rounded(topo.spheremp[: topo.N], dtype), rounded(topo.rspheremp, dtype)
         self.dvv = (
             model.operators.dvv_rows if dtype is f64 else operators.dvv_matrix(model.topology.grid.rule.dvv, dtype)

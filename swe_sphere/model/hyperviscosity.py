@@ -78,7 +78,7 @@ class Hyperviscosity:
         self.dtype = dtype = t.dtype  # the model's float type: the ∇⁴'s
         # the frame the passes read (``_frame``), in that type (Dinv the tendency's; spheremp, dvv: t.mass, t.dvv)
         ops = m.operators
-        self.geometry = {"Dinv": t.Dinv, **{k: rounded(getattr(ops, k), dtype) for k in ("east", "north", "xyz")}}
+        self.geometry = {"Dinv": t.Dinv, **{k: ops.rounded(k, dtype) for k in ("east", "north", "xyz")}}
         # Y₁ (``kernels.hyperviscosity``); the per-node layout's is the DSS's output, float64
         self.hv_Y = wp.zeros((4, N), dtype=dtype if ops.per_element else f64, device=device)
         # the weak form of Y₁ (and Y₂'s on the per-node layout)
@@ -86,7 +86,7 @@ class Hyperviscosity:
         # the weak Laplacian's metric, fixed: computed once, not by every ∇⁴ evaluation
         if ops.per_element or m.tracers:
             metric = wp.zeros((4, N), dtype=f64, device=device)
-            m.launches.nodes(hyperviscosity.laplacian_metric, N, [ops.Dinv, m.spheremp, metric]).launch()
+            m.launches.nodes(hyperviscosity.laplacian_metric, N, [ops.one_use("Dinv"), m.spheremp, metric]).launch()
             self.hv_metric = rounded(metric, dtype)  # read by the tracers' ∇⁴ on either layout
         if ops.per_element:
             self.hv_L2 = wp.zeros((4, N), dtype=dtype, device=device)  # the weak form of Y₂ (L holds Y₁'s)

@@ -14,6 +14,7 @@ keeps its rows (and its bits, which the lanes reproduce: tests/model/test_tenden
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 from ..kernels import operators, tendencies
@@ -25,7 +26,7 @@ LANES = {wp.float32: 16, wp.float64: 0}
 class TendencyLanes:
     """The lanes of ``model``'s tendency (a ``ShallowWater``): the geometry in the across layout
     (``operators.across_layout``, its last block padded), made on first use from the model's
-    float64 arrays rounded once to the tendency's type (``precision.rounded``'s values), and each
+    float64 values (``ElementOperators.values``) rounded once to the tendency's type, and each
     CPU thread's scratch (9, np²) of W-vectors.
 
     ``lanes`` W: ``width`` (None: ``LANES`` of the tendency's float type ``dtype``) on a CPU's
@@ -66,27 +67,28 @@ class TendencyLanes:
         return sorted(held)
 
     def geometry(self) -> list:
-        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; a work
-        array's values without topography: unread) and spheremp in the across layout, W-vectors of the tendency's
-        type."""
+        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; zeros
+        without topography: unread) and spheremp in the across layout, W-vectors of the tendency's type, from
+        their float64 values (``ElementOperators.values``)."""
         if self._geometry is None:
             m, W = self.model, self.lanes
             ops, vw = m.operators, wp.types.vector(length=W, dtype=self.dtype)
 
-            def across(a, rows):
-                values = operators.across_layout(a.numpy().reshape(rows, -1), W, m.grid.np, pad=True)
-                out = wp.array(values, dtype=vw, device=m.device)  # rounded once, as ``precision.rounded``
+            def across(values, rows):
+                values = operators.across_layout(np.reshape(values, (rows, -1)), W, m.grid.np, pad=True)
+                out = wp.array(values, dtype=vw, device=m.device)  # rounded once, as ``ElementOperators.rounded``
                 return out if rows > 1 else out[0]
 
-            forcing = m.topo_forcing if m.topo_forcing is not None else ops.vec_work
-            D = across(ops.D, 4)
+            # without topography a forcing of zeros, unread
+            forcing = ops.values("forcing") if "forcing" in ops.geometry else np.zeros((2, m.N))
+            D = across(ops.values("D"), 4)
             self._geometry = [
                 D,
-                D if self.dtype is wp.float32 else across(ops.Dinv, 4),  # float32 inverts D (``tendency_across``)
-                across(ops.metdet, 1),
-                across(ops.fcor, 1),  # as it is now: a shared ensemble's members set theirs after the build
+                D if self.dtype is wp.float32 else across(ops.values("Dinv"), 4),  # float32 inverts D
+                across(ops.values("metdet"), 1),
+                across(ops.values("fcor"), 1),  # as it is now: a shared ensemble's members set theirs after the build
                 across(forcing, 2),
-                across(m.spheremp[: m.N], 1),
+                across(m.spheremp[: m.N].numpy(), 1),
             ]
         return self._geometry
 

@@ -205,6 +205,13 @@ class LaunchRecorder:
         the per-node one (``kernels.operators.row_vectors``, zero-copy)."""
         return operators.row_vectors(a, self.block if self.per_element else 1)
 
+    def lanes_launch(self, kernel, *inputs):
+        """The launch (not kept) of a kernel over lanes, as ``run_lanes`` records it."""
+        args = [self.lanes(a) if isinstance(a, wp.array) and a.shape[-1] == self.nnodes else a for a in inputs]
+        dim = next(a for a in args if isinstance(a, wp.array)).shape
+        W = self.block if self.per_element else 1
+        return self.record(kernel, dim if len(dim) > 1 else dim[0], args, nodes_per_index=W)
+
     def run_lanes(self, kernel, *inputs) -> None:
         """Run a kernel over lanes (``lanes``; a trailing ``offset`` in lanes, not in ``inputs``):
         each array of the nodes among ``inputs`` taken as lanes, the launch's dim the first one's
@@ -213,12 +220,7 @@ class LaunchRecorder:
         key = ("lanes", kernel.key, *(a.ptr if isinstance(a, wp.array) else None for a in inputs))
         launch = self._pointwise.get(key)
         if launch is None:
-            args = [self.lanes(a) if isinstance(a, wp.array) and a.shape[-1] == self.nnodes else a for a in inputs]
-            dim = next(a for a in args if isinstance(a, wp.array)).shape
-            W = self.block if self.per_element else 1
-            launch = self._pointwise[key] = self.record(
-                kernel, dim if len(dim) > 1 else dim[0], args, nodes_per_index=W
-            )
+            launch = self._pointwise[key] = self.lanes_launch(kernel, *inputs)
         else:
             for arg, value in zip(kernel.adj.args, inputs):
                 if not isinstance(value, wp.array):

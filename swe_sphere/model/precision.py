@@ -91,29 +91,31 @@ class TendencyArrays(NamedTuple):
         dtype,
         ops,
         mass: wp.array,
-        forcing: wp.array2d | None,
+        topography: bool,
         depth: float,
         rows: int = 3,
         rows_geometry: bool = True,
     ) -> TendencyArrays:
-        """The arrays of ``ops`` (the model's ``ElementOperators``), ``mass`` and ``forcing``
-        (float64) as the tendency reads them in ``dtype``, a new ``tend`` of the state's ``rows``
-        (3 and a row for each tracer), and the reference ``depth`` (m). ``rows_geometry`` False
-        (the tendency's lanes hold their own geometry: ``model.lanes``): under float32 no copies of
-        D, metdet, fcor and forcing (None), which only the tendency's rows read."""
-        tend = wp.zeros((rows, ops.N), dtype=dtype, device=ops.D.device)
+        """The arrays of ``ops`` (the model's ``ElementOperators``: its ``forcing`` with
+        ``topography``) and ``mass`` (float64) as the tendency reads them in ``dtype``, a new
+        ``tend`` of the state's ``rows`` (3 and a row for each tracer), and the reference ``depth``
+        (m). ``rows_geometry`` False (the tendency's lanes hold their own geometry:
+        ``model.lanes``): under float32 no copies of D, metdet, fcor and forcing (None), which only
+        the tendency's rows read."""
+        tend = wp.zeros((rows, ops.N), dtype=dtype, device=ops.device)
         if dtype is wp.float64:
+            forcing = ops.forcing if topography else None
             return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
         dvv = np.asarray(ops.grid.rule.dvv)
-        kept = (lambda a: rounded(a, dtype)) if rows_geometry else (lambda a: None)
+        kept = (lambda name: ops.rounded(name, dtype)) if rows_geometry else (lambda name: None)
         return cls(
             dtype,
-            kept(ops.D),
-            rounded(ops.Dinv, dtype),
-            kept(ops.metdet),
-            kept(ops.fcor),
+            kept("D"),
+            ops.rounded("Dinv", dtype),
+            kept("metdet"),
+            kept("fcor"),
             rounded(mass, dtype),
-            kept(forcing),
+            kept("forcing") if topography else None,
             rounded(ops.dvv, dtype),
             operators.dvv_matrix(dvv, dtype),
             tend,

@@ -237,10 +237,13 @@ class ShallowWater:
 
         # every launch of the model and of what acts on its states, recorded once and replayed
         self.launches = LaunchRecorder(self.backend, self.threads, grid.np, N, topo.nunique, per_element)
-        self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs)
-        self.topo_forcing = self._topography_forcing(hs) if "topography" in terms else None
         self.precision = precision
         self.state_dtype, self.compensated = state_dtype(precision), bool(compensated)
+        # the float64 geometry on the device where the steps read it; a float32 state's steps read
+        # their float32 copies, so that there it is uploaded where read and the diagnostics' let go
+        gravity = self.g if "topography" in terms else None
+        on_demand = self.state_dtype is not f64
+        self.operators = ElementOperators(grid, topo, self.launches, per_element, device, fcor, hs, gravity, on_demand)
         # the float32 state's global mass fixer (None: none)
         self.mass_fixer = MassFixer(self) if mass_fixer and self.state_dtype is not f64 else None
         # the tendency's vector lanes where they pay (``model.lanes``), and what the tendency kernels
@@ -251,7 +254,7 @@ class ShallowWater:
             dtype,
             self.operators,
             self.spheremp[:N],
-            self.topo_forcing,
+            "topography" in terms,
             depth,
             self.rows,
             rows_geometry=not self.lanes.applies(self.tracers),
@@ -271,17 +274,12 @@ class ShallowWater:
         t = self.tendency_arrays
         return t.tend if t.dtype is f64 else wp.zeros((self.rows, self.N), dtype=f64, device=self.device)
 
-    def _topography_forcing(self, hs) -> wp.array2d:
-        """(2, N) −g ∇hs (m s⁻², east/north) at the element-local nodes: the "topography" term's
-        constant forcing, the gradient of the surface height by the element's operators."""
-        ops, device = self.operators, self.device
-        forcing = wp.zeros((2, self.N), dtype=f64, device=device)
-        hs2 = wp.array(np.asarray(hs, dtype=float)[None, :], dtype=f64, device=device)
-        wp.launch(
-            operators.gradient_sphere, self.N, [hs2, 0, ops.Dinv, ops.dvv, self.grid.np, forcing, 0], device=device
-        )
-        forcing.assign(-self.g * forcing.numpy())
-        return forcing
+    @property
+    def topo_forcing(self) -> wp.array2d | None:
+        """(2, N) float64 −g ∇hs (m s⁻², east/north) at the element-local nodes on the device (None
+        without the "topography" term): its constant forcing, the gradient of the surface height by
+        the element's operators (``ElementOperators``' ``forcing``, uploaded on first read)."""
+        return self.operators.forcing if "forcing" in self.operators.geometry else None
 
     @classmethod
     def from_case(cls, grid: CubedSphere, case, terms, **options) -> ShallowWater:

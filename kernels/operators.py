@@ -387,15 +387,15 @@ def _transpose16_snippet() -> str:
         "for (int n = 0; n < count; ++n) {",
         "    wp::vec_t<16, wp::float32> b;",
         "    for (int w = 0; w < 16; ++w)",
-        "        b.c[w] = wp::index(src, r, first + w < last ? first + w : last).c[n];",
-        "    wp::index(dst, dr, dfirst + n) = b;",
+        "        b.c[w] = wp::index(src, r, first + w * stride < last ? first + w * stride : last).c[n];",
+        "    wp::index(dst, dr, dfirst + n * dstride) = b;",
         "}",
         "#else",
         "typedef float v16 __attribute__((ext_vector_type(16)));",
     ]
     for w, a in enumerate(names):
         lines.append(
-            f"v16 {a}; __builtin_memcpy(&{a}, &wp::index(src, r, first + {w} < last ? first + {w} : last), 64);"
+            f"v16 {a}; __builtin_memcpy(&{a}, &wp::index(src, r, first + {w} * stride < last ? first + {w} * stride : last), 64);"
         )
     for bit in range(4):
         s = 1 << bit
@@ -409,7 +409,7 @@ def _transpose16_snippet() -> str:
                 f"  a{i + s} = __builtin_shufflevector(a{i}, a{i + s}, {', '.join(map(str, hi))}); a{i} = t; }}"
             )
     for n, a in enumerate(names):
-        lines.append(f"if ({n} < count) __builtin_memcpy(&wp::index(dst, dr, dfirst + {n}), &{a}, 64);")
+        lines.append(f"if ({n} < count) __builtin_memcpy(&wp::index(dst, dr, dfirst + {n} * dstride), &{a}, 64);")
     lines.append("#endif")
     return "\n".join(lines) + "\n"  # the #endif on a line of its own
 
@@ -423,15 +423,19 @@ def transpose16(
     r: int,
     first: int,
     last: int,
+    stride: int,
     dst: wp.array2d(dtype=_vec16f),
     dr: int,
     dfirst: int,
+    dstride: int,
     count: int,
 ):
-    """dst[dr, dfirst + n][w] = src[r, min(first + w, last)][n] for w < 16 and n < ``count``: 16
-    vectors of 16 float32 transposed, in registers on the CPU (clang's vector shuffles, whatever
-    the target's width) where a value at a time went through memory. What moves an element
-    block's rows between the node layout and the across layout (``tendencies.tendency_across``)."""
+    """dst[dr, dfirst + n·dstride][w] = src[r, min(first + w·stride, last)][n] for w < 16 and
+    n < ``count``: 16 vectors of 16 float32 transposed, in registers on the CPU (clang's vector
+    shuffles, whatever the target's width) where a value at a time went through memory. What
+    moves an element block's rows between the node layout and the across layout
+    (``tendencies.tendency_across``; the strides step over an element's np²/16 vectors of 16 at
+    np 8)."""
     ...
 
 

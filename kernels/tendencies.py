@@ -88,7 +88,7 @@ def inverse_det(D: wp.array2d(dtype=Any), p: int):
 
 
 @functools.cache
-def finish(terms: tuple, weighted: bool = False, inverted: bool = False):
+def finish(terms: tuple, weighted: bool = False, inverted: bool = False, determinant: bool = False):
     """The pointwise end of the tendency, shared by the three layouts: from the
     reference derivatives div = Σ∂(metdet h c), (bx, by) = ∂(Bernoulli), and
     cx − cy = ∂ξ v₂ − ∂η v₁ (covariant wind), write tend[:, s], times mass[p] (the element
@@ -98,9 +98,14 @@ def finish(terms: tuple, weighted: bool = False, inverted: bool = False):
     values rows (``operators.row_vectors``, the element kernel), or a node of a block of elements
     and the values vectors of them (``tendency_across``), of the tendency's float type; the
     state x float64 or of that type, its wind read in that type. ``inverted``: the argument Dinv
-    holds D, and D⁻¹ = adj(D)/det D is formed from it (``tendency_across`` in float32)."""
+    holds D, and D⁻¹ = adj(D)/det D is formed from it (``tendency_across`` in float32);
+    ``determinant`` (with ``inverted``): metdet taken as det D (``CubedSphere``'s metdet is det D
+    times one global area factor, 1 + 4e-15), the one 1/det D of the node dividing the
+    continuity, the gradient and the vorticity (``tendency_across`` on the float32 state: one
+    division a node where there were three, and metdet not read)."""
     CONT, ADV, COR, PG, TOPO = term_flags(terms)
     W, INV = bool(weighted), bool(inverted)
+    DET = INV and bool(determinant)
     GRAD = ADV or PG
 
     def finish_terms(
@@ -123,17 +128,28 @@ def finish(terms: tuple, weighted: bool = False, inverted: bool = False):
         du = zero
         dv = zero
         dh = zero
-        if wp.static(CONT):
+        r = zero
+        if wp.static(INV and (GRAD or DET)):
+            r = inverse_det(Dinv, p)
+        if wp.static(CONT and DET):
+            dh = -times(div, r)
+        elif wp.static(CONT):
             dh = -over(div, metdet[p])
         if wp.static(GRAD and INV):  # D⁻¹ᵀ∇ = (D₁₁ bx − D₁₀ by, D₀₀ by − D₀₁ bx) / det D
-            r = inverse_det(Dinv, p)
             du = -times(r, times(Dinv[3, p], bx) - times(Dinv[2, p], by))
             dv = -times(r, times(Dinv[0, p], by) - times(Dinv[1, p], bx))
         elif wp.static(GRAD):
             du = -(times(Dinv[0, p], bx) + times(Dinv[2, p], by))
             dv = -(times(Dinv[1, p], bx) + times(Dinv[3, p], by))
         if wp.static(ADV or COR):  # −(ζ + f) k×v
-            rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
+            rot = zero
+            if wp.static(DET):  # ζ = (cx − cy)/det D
+                if wp.static(ADV):
+                    rot = times(cx - cy, r)
+                if wp.static(COR):
+                    rot += fcor[p]
+            else:
+                rot = wp.static(absolute_vorticity(terms))(p, cx, cy, metdet, fcor)
             du += times(rot, type(rot)(x[1, s]))  # the state's wind in the tendency's float type
             dv -= times(rot, type(rot)(x[0, s]))
         if wp.static(TOPO):
@@ -149,7 +165,11 @@ def finish(terms: tuple, weighted: bool = False, inverted: bool = False):
         tend[2, s] = dh
 
     finish_terms.__qualname__ = finish_terms.__name__ = (
-        "finish__" + "__".join(terms) + ("__mass" if W else "") + ("__inverted" if INV else "")
+        "finish__"
+        + "__".join(terms)
+        + ("__mass" if W else "")
+        + ("__inverted" if INV else "")
+        + ("__determinant" if DET else "")
     )
     return wp.func(finish_terms)
 
@@ -429,6 +449,15 @@ def tendency_element(
     return wp.kernel(kernel, enable_backward=False, module="unique", module_options=CPU_FAST)
 
 
+def across_views(np_: int, lanes: int, dtype, departed: bool) -> tuple[int, int]:
+    """The values a vector of ``tendency_across``'s views of x and tend (``operators.row_vectors``
+    widths): 16 where a block's rows move by 16 × 16 transposes (float32 on 16 lanes, np² a
+    multiple of 16; x only where it is the float32 state's), else an element's np²."""
+    nn = int(np_) ** 2
+    shuffled = dtype is wp.float32 and int(lanes) == 16 and nn % 16 == 0
+    return (16 if shuffled and departed else nn), (16 if shuffled else nn)
+
+
 @functools.cache
 def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, dtype=f64, departed: bool = False):
     """The tendency kernel for ``terms`` with W = ``lanes`` elements a vector (the element index
@@ -439,7 +468,10 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     viewed as an element's np² values a row (``operators.row_vectors(a, np²)``): each element's
     rows go into the thread's scratch S (9, np²) of W-vectors and come back from it, in float32 on
     16 lanes as 16 × 16 transposes in registers (``operators.transpose16``: the tendency 0.39 →
-    0.23 ms at TC5 ne30, one thread), else lane by lane. The geometry is in the across layout: [k, b np² + n][w] the value at node n of
+    0.23 ms at TC5 ne30, one thread; np² a multiple of 16, np 8's element rows four of them),
+    else lane by lane. On the float32 state (``departed``) metdet is det D (``finish``'s
+    determinant: one division a node, the tendency alone at TC5 ne30 np4 0.204–0.212 → 0.179–0.195
+    ms, Galewsky ne12 np8 0.248 → 0.171–0.176). The geometry is in the across layout: [k, b np² + n][w] the value at node n of
     element W b + w (``operators.across_layout`` with its last block padded). Each sum is
     ``tendency_element``'s, its products commuted, in its order (HOMME's ``sweq_mod``
     arithmetic): float64 gives the rows' bits (tests/model/test_tendency_lanes.py); in float32
@@ -460,17 +492,23 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     xtype = dtype if DEPARTED else f64
     vw = wp.types.vector(length=W, dtype=dtype)
     node = row_type(NN, dtype)  # an element's np² values in the tendency's type
-    state = row_type(NN, xtype)  # and in the state's (x and tend viewed so: one load, one store an element's row)
     mat = row_derivatives(NP, dtype)[1]
     # float32 forms D⁻¹ from D (``finish``'s inverted): 4 of the 13 geometry vectors a node not
     # read; float64 reads it (its lanes give the rows' bits)
     INV = dtype is wp.float32
-    end = finish(terms, weighted, INV)
-    # float32 on 16 lanes at np 4: a block's rows moved by ``operators.transpose16``, the state's
-    # too where it is float32 (a float32 state's departure; the mixed float32's float64 x goes lane
-    # by lane, rounded as it goes)
-    SHUFFLED = dtype is wp.float32 and W == 16 and NN == 16
+    # the float32 state's: metdet as det D (``finish``'s determinant), the mass flux metdet h D⁻¹v
+    # = h adj(D) v with no division (the mixed float32's lanes keep their bits)
+    DET = INV and DEPARTED
+    end = finish(terms, weighted, INV, DET)
+    # float32 on 16 lanes at np 4 and 8: a block's rows moved by ``operators.transpose16``, 16
+    # nodes at a time (CH of them an element's row), the state's too where it is float32 (a
+    # float32 state's departure; the mixed float32's float64 x goes lane by lane, rounded as it goes)
+    SHUFFLED = dtype is wp.float32 and W == 16 and NN % 16 == 0
     SHUFFLED_IN = SHUFFLED and xtype is wp.float32
+    CH = NN // 16
+    xrow, trow = across_views(NP, W, dtype, DEPARTED)  # x and tend viewed so: an element's row, or its 16s
+    state = row_type(xrow, xtype)
+    node_out = row_type(trow, dtype)
 
     def kernel(
         x: wp.array2d(dtype=state),
@@ -484,7 +522,7 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
         h0: state,
         dvv: mat,
         S: wp.array2d(dtype=vw),
-        tend: wp.array2d(dtype=node),
+        tend: wp.array2d(dtype=node_out),
         nelem: int,
         offset: int,
     ):
@@ -497,7 +535,8 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
         # other node reads after the fluxes are formed
         if wp.static(SHUFFLED_IN):  # the block's 16 rows of u, v, h, transposed in registers
             for r in range(3):
-                transpose16(x, r, e0, nelem - 1, S, r, 0, NN)
+                for k in range(CH):
+                    transpose16(x, r, e0 * CH + k, (nelem - 1) * CH + k, CH, S, r, 16 * k, 1, 16)
         else:
             for w in range(W):  # the state in, lane by lane (unrolled: each lane's stores at fixed offsets)
                 p = wp.min(e0 + w, nelem - 1)  # the last block's lanes past it read its last element again
@@ -518,7 +557,11 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
             u = S[0, n]
             v = S[1, n]
             h = S[2, n]
-            if wp.static(CONT):
+            if wp.static(CONT and DET):  # metdet h D⁻¹(u, v) = h (D₁₁ u − D₀₁ v, D₀₀ v − D₁₀ u)
+                depth = h + vw(h0[0])
+                S[4, n] = times(depth, times(D[3, q], u) - times(D[1, q], v))
+                S[5, n] = times(depth, times(D[0, q], v) - times(D[2, q], u))
+            elif wp.static(CONT):
                 depth = h  # h0 added back to a departed state's h − h0
                 if wp.static(DEPARTED):
                     depth = h + vw(h0[0])
@@ -574,7 +617,8 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
                 end(q, n, div, bx, by, cx, cy, S, Dinv, metdet, fcor, forcing, mass, S)
         if wp.static(SHUFFLED):  # the tendency out likewise, the last block's lanes past nelem left
             for r in range(3):
-                transpose16(S, r, 0, NN - 1, tend, r, e0, wp.min(W, nelem - e0))
+                for k in range(CH):
+                    transpose16(S, r, 16 * k, 16 * k + 15, 1, tend, r, e0 * CH + k, CH, wp.min(W, nelem - e0))
         else:
             for w in range(W):  # the tendency out, lane by lane (unrolled), the last block's lanes past nelem left
                 if e0 + w < nelem:

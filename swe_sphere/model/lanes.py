@@ -1,4 +1,4 @@
-"""The tendency's vector lanes on the CPU: W elements a vector at np 4 where it pays.
+"""The tendency's vector lanes on the CPU: W elements a vector at np 4 (and 8) where it pays.
 
 On the per-element layout an element's GLL row at np 4 is 4 values: a float32 row fills a
 quarter of a 512-bit register, a float64 row half. ``TendencyLanes`` runs the tendency with the
@@ -10,6 +10,13 @@ from one thread's CPU clock at np 4 (``benchmarks/micro/precision_speed.py`` wit
 ``float32:rows``, the rows timed beside the lanes): float32's tendency ran 1.2–1.8× faster on
 16 lanes than on rows (TC5 ne30 and ne120); float64's 0.5–0.85× as fast on 8 or 16, so float64
 keeps its rows (and its bits, which the lanes reproduce: tests/model/test_tendency_lanes.py).
+At np 8 a float32 row fills half a register; the float32 state's lanes there move each
+element's rows by four 16 × 16 transposes and divide once a node (``tendencies.finish``'s
+determinant): Galewsky ne12 np8's tendency 0.212–0.218 ms a call on rows, 0.248 in lanes
+dividing three times, 0.171–0.176 once (one thread, CPU clock, the least of 7 rounds of 50
+calls, load 8–9). Moved lane by lane (np 6, or np 8's mixed float32 from its float64 state)
+they ran slower than the rows (Galewsky ne12 np6, RHS 0.309 against 0.266 ms), and the mixed
+float32 keeps its bits: neither runs in lanes.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ class TendencyLanes:
     CPU thread's scratch (9, np²) of W-vectors.
 
     ``lanes`` W: ``width`` (None: ``LANES`` of the tendency's float type ``dtype``) on a CPU's
-    per-element layout at np 4 with any element, else 0: a rank's few elements too (one block, its
+    per-element layout at np 4 (and the float32 state's at np 8) with any element, else 0: a rank's few elements too (one block, its
     lanes past them padded), so that every rank count has one arithmetic. Where they run (``applies``),
     the model keeps no float32 rows of D, metdet, fcor and −g∇hs (``precision.TendencyArrays``):
     the geometry is 12 rows of N values of the tendency's type (float32's 8: D⁻¹ formed from D) against the
@@ -40,8 +47,12 @@ class TendencyLanes:
         self.model = m = model
         np_ = m.grid.np
         w = LANES.get(dtype, 0) if width is None else int(width)
-        # a CPU's threads each have their scratch; on CUDA (per element or not) the lanes are not measured
-        ok = m.backend.host and per_element and np_ == 4 and w > 1 and m.N > 0
+        # a CPU's threads each have their scratch; on CUDA (per element or not) the lanes are not measured.
+        # np 8: the float32 state's, whose rows move by 16 × 16 transposes (``tendencies.across_views``)
+        shuffled = (
+            np_ == 8 and m.state_dtype is not wp.float64 and tendencies.across_views(np_, w, dtype, True) == (16, 16)
+        )
+        ok = m.backend.host and per_element and (np_ == 4 or shuffled) and w > 1 and m.N > 0
         self.lanes, self.dtype = (w if ok else 0), dtype
         self._geometry = None
         if self.lanes:
@@ -101,14 +112,15 @@ class TendencyLanes:
         nn = np_ * np_
         departed = x.dtype is not wp.float64
         kernel = tendencies.tendency_across(terms, np_, W, weighted, t.dtype, departed)
+        xrow, trow = tendencies.across_views(np_, W, t.dtype, departed)
         inputs = [
-            operators.row_vectors(x, nn),
+            operators.row_vectors(x, xrow),
             *self.geometry(),
             m.g,
-            operators.row_type(nn, x.dtype)(t.depth),
+            operators.row_type(xrow, x.dtype)(t.depth),
             t.dvv_rows,
             self._per_part["S"][0],
-            operators.row_vectors(tend, nn),
+            operators.row_vectors(tend, trow),
             m.N // nn,
         ]
         start, stop = blocks

@@ -1,6 +1,7 @@
 """The tendency's vector lanes (``model.lanes``, ``kernels.tendencies.tendency_across``): W
-elements a vector at np 4, the rows' arithmetic in float64 to the bit (its sums in the rows'
-order), float32's to its round-off over steps, where it is dispatched and where not."""
+elements a vector at np 4 (and the float32 state's at np 8), the rows' arithmetic in float64 to
+the bit (its sums in the rows' order), float32's to its round-off over steps, where it is
+dispatched and where not."""
 
 import numpy as np
 import pytest
@@ -45,14 +46,15 @@ def test_float64_lanes_have_the_rows_bits(name, width):
     assert np.array_equal(rows, lanes_)
 
 
-@pytest.mark.parametrize("precision", ["float32", "float32_state"])
-def test_float32_lanes_stay_within_steps_of_float32_round_off(precision):
+@pytest.mark.parametrize("precision, ne, np_", [("float32", 3, 4), ("float32_state", 3, 4), ("float32_state", 2, 8)])
+def test_float32_lanes_stay_within_steps_of_float32_round_off(precision, ne, np_):
     """In float32 clang contracts other products into FMAs than on rows: TC5 (its mountain, every
     term) stepped 12 rk4 steps with lanes and with rows stays within 12 steps × 8 ε₃₂ of each row's
-    largest value (measured: u, v 1.3, 5.2 ε₃₂ in float32, 4.2, 16 in float32_state; h 0.2, 0.3),
-    and the two are not the same bits (the lanes ran)."""
-    scene = load_scene("tc5_mountain", ne=3)
-    grid = cached_grid(3, 4)
+    largest value (measured: u, v 1.3, 5.2 ε₃₂ in float32, 4.2, 16 in float32_state; h 0.2, 0.3;
+    np 8's float32 state, its rows moved by four transposes of 16 an element, ne 2's 24 elements
+    a block and a padded one: u, v 3.9, 25 ε₃₂, h 0.4), and the two are not the same bits (the lanes ran)."""
+    scene = load_scene("tc5_mountain", ne=ne, np_=np_)
+    grid = cached_grid(ne, np_)
     x0 = np.stack(scene.make_case().initial(grid.lat, grid.lon))
     steps, states = 12, []
     for width in (0, 16):
@@ -72,10 +74,10 @@ def test_float32_lanes_stay_within_steps_of_float32_round_off(precision):
 
 def test_lanes_run_where_they_pay():
     """The lanes at the shipped ``LANES``: float32 (the mixed and the state) on the CPU's elements at
-    np 4, a part's elements too (the blocks that hold them) and 6 elements (one block, its other
-    lanes padded: a rank's few elements run the arithmetic of one rank's many, the bits of every
-    rank count); not float64, np 6, the per-node layout or tracers (their rows ride the element
-    kernel, the dynamics' too)."""
+    np 4, the float32 state's at np 8 (not the mixed float32's: its bits kept), a part's elements
+    too (the blocks that hold them) and 6 elements (one block, its other lanes padded: a rank's few
+    elements run the arithmetic of one rank's many, the bits of every rank count); not float64,
+    np 6, the per-node layout or tracers (their rows ride the element kernel, the dynamics' too)."""
     scene = load_scene("tc5_mountain", ne=3)
     grid = cached_grid(3, 4)
 
@@ -102,6 +104,10 @@ def test_lanes_run_where_they_pay():
     assert np.array_equal(out.numpy()[:, inner], whole.numpy()[:, inner])
     assert kernels(scene, grid)[0].lanes.lanes == 0  # float64: its rows
     assert kernels(load_scene("tc5_mountain", ne=3, np_=6), cached_grid(3, 6), precision="float32")[0].lanes.lanes == 0
+    np8 = load_scene("tc5_mountain", ne=2, np_=8), cached_grid(2, 8)  # the float32 state's lanes, not the mixed
+    model, names = kernels(*np8, precision="float32_state")
+    assert model.lanes.lanes == 16 and names[0].startswith("tendency_across__np8_w16__")
+    assert kernels(*np8, precision="float32")[0].lanes.lanes == 0
     assert kernels(scene, grid, precision="float32", per_element=False)[0].lanes.lanes == 0
     assert kernels(load_scene("tc5_mountain", ne=1), cached_grid(1, 4), precision="float32")[0].lanes.lanes == 16
     tracers = load_scene("tc5_mountain_marker", ne=3)

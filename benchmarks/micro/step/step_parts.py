@@ -42,6 +42,8 @@ def arguments():
     p.add_argument("--np", type=positive(int), default=None)
     p.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
     p.add_argument("--steps", type=positive(int), default=96)
+    p.add_argument("--precision", default=None, help="numerics.precision (default: the scene's)")
+    p.add_argument("--kept", action="store_true", help="numerics.compensated = false: the float32 state kept")
     p.add_argument("--results", default=None, help="results stem (default step_parts)")
     return p.parse_args()
 
@@ -65,6 +67,10 @@ def main() -> None:
     options = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
     if args.every:
         options["hyperviscosity"] = {"every": args.every}
+    if args.precision:
+        options["precision"] = args.precision
+    if args.kept:
+        options["numerics.compensated"] = False
     tally = collections.defaultdict(lambda: [0, 0.0])
     wrapped = (
         (wp.Launch, "launch", lambda a: a[0].kernel.key),

@@ -28,11 +28,22 @@ of e64. Printed as a markdown table; figures to ``results/precision_accuracy/pre
 or "float32_state_compensated" (``numerics.compensated = true``: a float64 state between steps,
 each step's float32 increment added to it); ``--no-mass-fixer`` runs it with
 ``numerics.mass_fixer = false`` (the float32 state's mass left to drift).
+
+``--table STEM ...`` runs nothing: it prints the markdown table of the results files
+``results/precision_accuracy/STEM.json``: files of one precision and fixer, the table of all
+their rows in turn (as one run of them prints it); files of several, one table of the rows they
+share, each run set against float64 (the first file's). docs/explanation/precision.md's tables
+are these (the second's files: the float32 state kept and compensated, each with and without
+its fixer)::
+
+    python benchmarks/studies/precision_accuracy.py --table precision_accuracy_galewsky precision_accuracy_scenes precision_accuracy_tc2
+    python benchmarks/studies/precision_accuracy.py --table float32_state_default float32_state_default_nofixer float32_state_compensated float32_state_compensated_nofixer
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -210,9 +221,45 @@ def table(rows: list[dict], low: str = "float32") -> list[str]:
     return lines
 
 
+def label(rows: list[dict]) -> str:
+    """A results file's run against float64, as a column names it: its precision ("kept" for the
+    float32 state's default, "compensated"), ", no fixer" without its mass fixer."""
+    low = rows[0]["low"]
+    name = {"float32_state": "kept", "float32_state_compensated": "compensated"}.get(low, low)
+    return name + ("" if rows[0].get("mass_fixer", True) else ", no fixer")
+
+
+def combined_table(files: list[list[dict]]) -> list[str]:
+    """The markdown table of the rows every file holds (the first file's order), each file's
+    error, |Δ error| / error, field difference and mass change beside float64's (the first's)."""
+    names = [label(rows) for rows in files]
+    by_row = [{r["row"]: r for r in rows} for rows in files]
+    shared = [r["row"] for r in files[0] if all(r["row"] in f for f in by_row)]
+    both = " / ".join(names)
+    lines = [
+        f"| scene, grid, day | stepper, Δt | measure | float64 | {' | '.join(names)} | \\|Δ error\\| / error: {both} "
+        f"| ‖f − f64‖ / ‖ref‖ (/ error): {both} | mass change: float64 / {both} |",
+        "|---|---|---|---|" + "---|" * len(names) + "---|---|---|",
+    ]
+    for name in shared:
+        rs = [f[name] for f in by_row]
+        r = rs[0]
+        label_ = f" ({r['label']})" if r["label"] else ""
+        errors = " | ".join(f"{x['error_' + x['low']]:.4e}" for x in rs)
+        moved = " / ".join(f"{100 * x['error_difference']:.2g} %" for x in rs)
+        fields = " / ".join(f"{x['field_difference']:.2e} ({100 * x['field_difference_over_error']:.2g} %)" for x in rs)
+        mass = " / ".join(f"{x[x['low']]['invariants']['mass_change']:+.1e}" for x in rs)
+        lines.append(
+            f"| {r['scene']} ne{r['ne']} np{r['np']}{label_}, day {r['days']:g} | {r['stepper']}, {r['dt']:.1f} s "
+            f"| {r['measure']} | {r['error_float64']:.4e} | {errors} | {moved} | {fields} "
+            f"| {r['float64']['invariants']['mass_change']:+.1e} / {mass} |"
+        )
+    return lines
+
+
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py, the shared module
-    from results import recorded  # benchmarks/ is first on the path of a script run from it
+    from results import RESULTS, recorded  # benchmarks/ is first on the path of a script run from it
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -228,7 +275,17 @@ def main() -> None:
         help="the float32 state without its mass fixer (numerics.mass_fixer = false)",
     )
     parser.add_argument("--results", metavar="STEM", help="results/STEM.json (default precision_accuracy)")
+    parser.add_argument(
+        "--table", nargs="+", metavar="STEM", help="print the table of these results files, run nothing"
+    )
     args = parser.parse_args()
+    if args.table:
+        files = [json.loads((RESULTS / "precision_accuracy" / f"{stem}.json").read_text()) for stem in args.table]
+        files = [f["figures"]["rows"] for f in files]
+        same = len({label(rows) for rows in files}) == 1  # one precision and fixer: their rows in turn
+        for line in table([r for rows in files for r in rows], files[0][0]["low"]) if same else combined_table(files):
+            print(line)
+        return
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")  # read when the model is built
     if args.keep:
         os.makedirs(args.keep, exist_ok=True)

@@ -91,7 +91,7 @@ def owners(root, name: str) -> dict:
 
 def run_arrays(name: str, ne: int, np_: int, precision: str) -> list[tuple]:
     """(bytes, float type, shape, owner) of each Warp array a run of scene ``name`` at ne, np in
-    ``precision`` (``:kept``: ``numerics.compensated = false``) holds, largest first: those alive
+    ``precision`` (``:compensated``: ``numerics.compensated = true``) holds, largest first: those alive
     after its ``Simulation`` has taken a step and written its run file (t = 0 and the step) that
     it made (``allocations``), an owner the attribute path from the simulation (``owners``; "?"
     for one only a recorded launch holds)."""
@@ -99,7 +99,7 @@ def run_arrays(name: str, ne: int, np_: int, precision: str) -> list[tuple]:
 
     precision, _, layout = precision.partition(":")
     before = set(allocations())
-    options = {"numerics.compensated": False} if layout == "kept" else {}
+    options = {"numerics.compensated": True} if layout == "compensated" else {}
     sim = Simulation(name, device="cpu", progress=False, threads=1, ne=ne, np=np_, precision=precision, **options)
     with tempfile.TemporaryDirectory() as tmp:
         sim.run(Path(tmp) / "run.nc", until_step=1)

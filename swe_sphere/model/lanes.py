@@ -78,7 +78,7 @@ class TendencyLanes:
         return sorted(held)
 
     def geometry(self) -> list:
-        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; zeros
+        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; D's rows
         without topography: unread) and spheremp in the across layout, W-vectors of the tendency's type, from
         their float64 values (``ElementOperators.values``)."""
         if self._geometry is None:
@@ -90,15 +90,14 @@ class TendencyLanes:
                 out = wp.array(values, dtype=vw, device=m.device)  # rounded once, as ``ElementOperators.rounded``
                 return out if rows > 1 else out[0]
 
-            # without topography a forcing of zeros, unread
-            forcing = ops.values("forcing") if "forcing" in ops.geometry else np.zeros((2, m.N))
             D = across(ops.values("D"), 4)
+            topography = "forcing" in ops.geometry
             self._geometry = [
                 D,
                 D if self.dtype is wp.float32 else across(ops.values("Dinv"), 4),  # float32 inverts D
                 across(ops.values("metdet"), 1),
                 across(ops.values("fcor"), 1),  # as it is now: a shared ensemble's members set theirs after the build
-                across(forcing, 2),
+                across(ops.values("forcing"), 2) if topography else D[0:2],  # read only with topography, as the rows
                 across(m.spheremp[: m.N].numpy(), 1),
             ]
         return self._geometry

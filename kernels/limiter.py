@@ -90,7 +90,8 @@ def limited(np_: int):
     """A ``wp.func`` (Q, C, qmin, qmax, iterations) → Q limited: Q (np × np, Q[j, i] q at GLL
     node (i, j) of an element, held in registers) moved into [qmin, qmax] keeping Σ C Q (C the
     nodes' mass weights spheremp·h): passes of clipping and spreading until one clips nothing
-    (HOMME stops at a tolerance, 1e-14 of the element's mass here before: the last spread then
+    (HOMME stops at a tolerance: HOMMEXX's ``limiter_optim_iter_full`` when the mass left is
+    ≤ 5e-14 of the element's, after np² − 1 passes at most; 1e-14 here before, whose last spread
     left a node past its bound by up to that mass over the weight it went to, 4e-12 of the
     correlated tracer's range in the transport test at ne10). A pass after the first clips on one
     side only (a spread moves values away from the other bound), and a node clipped to a bound

@@ -364,7 +364,7 @@ def across_as_along(np_: int) -> bool:
 
 def across_layout(a, lanes: int, np_: int, pad: bool = False):
     """The across layout (the element index innermost: ``hyperviscosity_element.laplacian_across``,
-    ``tendencies.tendency_across``) of a (rows, N) numpy array of element-local values:
+    ``tendency_lanes.tendency_across``) of a (rows, N) numpy array of element-local values:
     (rows, nb np², W), [k, b np² + n, w] = a[k, (W b + w) np² + n], over the nb = ⌊nelem/W⌋
     whole blocks of W = ``lanes`` elements, or with ``pad`` the ⌈nelem/W⌉ blocks, the last one's
     lanes past the last element holding that element's values."""
@@ -434,7 +434,7 @@ def transpose16(
     n < ``count``: 16 vectors of 16 float32 transposed, in registers on the CPU (clang's vector
     shuffles, whatever the target's width) where a value at a time went through memory. What
     moves an element block's rows between the node layout and the across layout
-    (``tendencies.tendency_across``; the strides step over an element's np²/16 vectors of 16 at
+    (``tendency_lanes.tendency_across``; the strides step over an element's np²/16 vectors of 16 at
     np 8)."""
     ...
 

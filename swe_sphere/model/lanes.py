@@ -2,7 +2,7 @@
 
 On the per-element layout an element's GLL row at np 4 is 4 values: a float32 row fills a
 quarter of a 512-bit register, a float64 row half. ``TendencyLanes`` runs the tendency with the
-element index innermost instead (``kernels.tendencies.tendency_across``, as the ∇⁴'s
+element index innermost instead (``kernels.tendency_lanes.tendency_across``, as the ∇⁴'s
 ``laplacian_across`` at np ≥ 5): a thread a block of W elements, each node's value a vector of
 theirs, the geometry held once in that layout, the state and the tendency in the node layout,
 moved through a thread's scratch (float32's 16 × 16 blocks transposed in registers). ``LANES`` says where it runs, per float type,
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..kernels import operators, tendencies
+from ..kernels import operators, tendency_lanes
 
 # W, the elements a vector of the tendency at np 4 per float type; 0: the rows (one element a thread)
 LANES = {wp.float32: 16, wp.float64: 0}
@@ -48,9 +48,11 @@ class TendencyLanes:
         np_ = m.grid.np
         w = LANES.get(dtype, 0) if width is None else int(width)
         # a CPU's threads each have their scratch; on CUDA (per element or not) the lanes are not measured.
-        # np 8: the float32 state's, whose rows move by 16 × 16 transposes (``tendencies.across_views``)
+        # np 8: the float32 state's, whose rows move by 16 × 16 transposes (``tendency_lanes.across_views``)
         shuffled = (
-            np_ == 8 and m.state_dtype is not wp.float64 and tendencies.across_views(np_, w, dtype, True) == (16, 16)
+            np_ == 8
+            and m.state_dtype is not wp.float64
+            and tendency_lanes.across_views(np_, w, dtype, True) == (16, 16)
         )
         ok = m.backend.host and per_element and (np_ == 4 or shuffled) and w > 1 and m.N > 0
         self.lanes, self.dtype = (w if ok else 0), dtype
@@ -110,8 +112,8 @@ class TendencyLanes:
         np_ = m.grid.np
         nn = np_ * np_
         departed = x.dtype is not wp.float64
-        kernel = tendencies.tendency_across(terms, np_, W, weighted, t.dtype, departed)
-        xrow, trow = tendencies.across_views(np_, W, t.dtype, departed)
+        kernel = tendency_lanes.tendency_across(terms, np_, W, weighted, t.dtype, departed)
+        xrow, trow = tendency_lanes.across_views(np_, W, t.dtype, departed)
         inputs = [
             operators.row_vectors(x, xrow),
             *self.geometry(),

@@ -1,4 +1,4 @@
-"""The tendency's vector lanes (``model.lanes``, ``kernels.tendencies.tendency_across``): W
+"""The tendency's vector lanes (``model.lanes``, ``kernels.tendency_lanes.tendency_across``): W
 elements a vector at np 4 (and the float32 state's at np 8), the rows' arithmetic in float64 to
 the bit (its sums in the rows' order), float32's to its round-off over steps, where it is
 dispatched and where not."""

@@ -11,7 +11,7 @@ import warp as wp
 
 from .dss import Copies, Edges, gather, gather_rows
 from .hyperviscosity import add_divergent, frame_type, scale_first, shift_second
-from .operators import CPU_FAST, across_as_along, row_derivatives, row_type, suffix, times
+from .operators import CPU_FAST, across_as_along, row_derivatives, row_type, suffix, times, transpose16
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -384,16 +384,26 @@ def weak_laplacian_across(np_: int, lanes: int, dtype=f64):
     return wp.func(sweeps)
 
 
+def shuffled(np_: int, lanes: int, dtype) -> bool:
+    """Whether ``laplacian_across`` moves a block's values by 16 × 16 transposes
+    (``operators.transpose16``): float32 on 16 lanes, np² a multiple of 16 (np 8, 12)."""
+    return dtype is wp.float32 and int(lanes) == 16 and int(np_) ** 2 % 16 == 0
+
+
 @functools.cache
 def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype=f64):
     """``laplacian_across``'s weak Laplacians of a block of W = ``lanes`` elements (src, hs, f, dvv,
-    L, G, X, fx, fy, b): each field lane by lane into X, ``weak_laplacian_across``, back into L's
-    rows; in ``dtype``."""
+    L, G, Sc, R, b): each field into Sc[0] (X), ``weak_laplacian_across`` (its scratch Sc[1], Sc[2]),
+    back into L's rows; in ``dtype``. Where ``shuffled``, the block's rows go through R (Sc[1]'s
+    memory as rows) and 16 × 16 transposes between it and X, 16 nodes at a time (CH of them an
+    element's np²), else lane by lane."""
     NP, W, S, DIV = int(np_), int(lanes), bool(second), bool(divergent) and not second
     vec, mat = row_derivatives(NP, dtype)[:2]
     RowFrame = frame_type(vec)
     vw = wp.types.vector(length=W, dtype=dtype)
     NN = NP * NP
+    SHUFFLED = shuffled(NP, W, dtype)
+    CH = NN // 16
     field = _row_field(S, NP, dtype)
     tag = f"{'second' if S else 'first'}_{'div_' if DIV else ''}np{NP}_w{W}" + suffix(dtype)
     sweeps = weak_laplacian_across(NP, W, dtype)
@@ -405,32 +415,45 @@ def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype
         dvv: mat,
         L: wp.array2d(dtype=vec),
         G: wp.array2d(dtype=vw),
-        X: wp.array(dtype=vw),
-        fx: wp.array(dtype=vw),
-        fy: wp.array(dtype=vw),
+        Sc: wp.array2d(dtype=vw),
+        R: wp.array(dtype=vec),
         b: int,
     ):
         e0 = b * W
         bn = b * NN
         first = e0 * NN  # a run-time start for the sweeps' loops
+        X = Sc[0]
         for r in range(L.shape[0]):  # one field at a time, in a loop clang does not unroll
-            for e in range(e0, e0 + W):  # field r of the block's elements, lane by lane (not unrolled)
-                w = e - e0
-                base = e * NP
-                for k in range(base, base + NP):
-                    j = k - base
-                    row = field(src, hs, f, r, k)
-                    for i in range(NP):
-                        X[j * NP + i][w] = row[i]
-            sweeps(X, G, fx, fy, dvv, bn, first)  # X becomes its weak Laplacian: L in the across layout
-            for w in range(W):  # back into L's rows, the lane fixed (stores strided by np² cost what the sweeps saved)
-                base = (e0 + w) * NP
-                for k in range(base, base + NP):
-                    j = k - base
-                    row = vec()
-                    for i in range(NP):
-                        row[i] = X[j * NP + i][w]
-                    L[r, k] = row
+            # the block's rows (consecutive) into R whole, then transposed into X in registers
+            if wp.static(SHUFFLED):
+                for q in range(e0 * NP, e0 * NP + W * NP):
+                    R[q - e0 * NP] = field(src, hs, f, r, q)
+                for k in range(CH):
+                    transpose16(Sc, 1, k, (W - 1) * CH + k, CH, Sc, 0, 16 * k, 1, 16)
+            else:
+                for e in range(e0, e0 + W):  # field r of the block's elements, lane by lane (not unrolled)
+                    w = e - e0
+                    base = e * NP
+                    for k in range(base, base + NP):
+                        j = k - base
+                        row = field(src, hs, f, r, k)
+                        for i in range(NP):
+                            X[j * NP + i][w] = row[i]
+            sweeps(X, G, Sc[1], Sc[2], dvv, bn, first)  # X becomes its weak Laplacian: L in the across layout
+            if wp.static(SHUFFLED):  # transposed back into R's rows, then copied into L's
+                for k in range(CH):
+                    transpose16(Sc, 0, 16 * k, 16 * k + 15, 1, Sc, 1, k, CH, 16)
+                for q in range(e0 * NP, e0 * NP + W * NP):
+                    L[r, q] = R[q - e0 * NP]
+            else:  # back into L's rows, the lane fixed (stores strided by np² cost what the sweeps saved)
+                for w in range(W):
+                    base = (e0 + w) * NP
+                    for k in range(base, base + NP):
+                        j = k - base
+                        row = vec()
+                        for i in range(NP):
+                            row[i] = X[j * NP + i][w]
+                        L[r, k] = row
 
     block_laplacians.__qualname__ = block_laplacians.__name__ = f"laplacian_block_{tag}"
     return wp.func(block_laplacians)
@@ -446,18 +469,21 @@ def laplacian_across(
     ``wp.types.vector(W)`` of those elements' values, each derivative sweep dvv's scalars times
     such vectors (the rows' products, commuted, summed in the same order: the same bits,
     ``benchmarks/archive/replaced_paths.py across_elements``). The state, Y, L and the DSS stay in today's layout:
-    each field's values (``field``, formed on rows as there) go lane by lane into the scratch X,
-    the sweeps go through the scratch fx, fy, and L is written back lane by lane; the second
+    each field's values (``field``, formed on rows as there) go into the scratch X, the sweeps
+    go through the scratch fx, fy, and L is written back, lane by lane or, where ``shuffled``, by
+    16 × 16 transposes (Galewsky ne12 np8's float32 state, one thread, least of 9 × 50
+    calls: first pass 0.660 → 0.542 ms, second 0.676 → 0.553); the second
     pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by
     element. np ≥ 5 only (ValueError otherwise: np 4 keeps its unrolled rows and their bits);
     the elements past the last whole block go through ``laplacian_element``.
     Arguments: (second: xr, x, d, g, wr, rsr, as ``Topology.by_element`` gives them), src, hs,
     delta, c, f, metric, dvv, L as ``laplacian_element``'s;
     G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
-    (W b + w) np² + n] (``operators.across_layout``); X, fx, fy (np²) vectors of W, a thread's private
-    scratch (``parallel.record``'s ``per_part``); offset (in blocks). Dim ⌊nelem/W⌋.
+    (W b + w) np² + n] (``operators.across_layout``); scratch (3, np²) vectors of W (X, fx, fy) and
+    R its row 1's memory as W·np rows of np, a thread's private scratch (``parallel.record``'s
+    ``per_part``; ``Hyperviscosity``'s); offset (in blocks). Dim ⌊nelem/W⌋.
     HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric). ``dtype`` as
-    ``laplacian_element``'s (of G, X, fx, fy too)."""
+    ``laplacian_element``'s (of G, scratch, R too)."""
     NP, W = int(np_), int(lanes)
     S = bool(second)
     DIV = bool(divergent) and not S
@@ -491,9 +517,8 @@ def laplacian_across(
             dvv: mat,
             L: wp.array2d(dtype=vec),
             G: wp.array2d(dtype=vw),
-            X: wp.array(dtype=vw),
-            fx: wp.array(dtype=vw),
-            fy: wp.array(dtype=vw),
+            scratch: wp.array2d(dtype=vw),
+            R: wp.array(dtype=vec),
             offset: int,
         ):
             b = wp.tid() + offset
@@ -502,7 +527,7 @@ def laplacian_across(
                     y = row_dss(xr, x, d, g, wr, rsr, e, j)
                     for r in range(4):
                         src[r, e * NP + j] = vec(y[r])
-            block(src, hs, f, dvv, L, G, X, fx, fy, b)
+            block(src, hs, f, dvv, L, G, scratch, R, b)
             for e in range(b * W, b * W + W):  # not unrolled
                 pointwise(src, hs, delta, c, f, metric, dvv, L, e)
 
@@ -518,13 +543,12 @@ def laplacian_across(
             dvv: mat,
             L: wp.array2d(dtype=vec),
             G: wp.array2d(dtype=vw),
-            X: wp.array(dtype=vw),
-            fx: wp.array(dtype=vw),
-            fy: wp.array(dtype=vw),
+            scratch: wp.array2d(dtype=vw),
+            R: wp.array(dtype=vec),
             offset: int,
         ):
             b = wp.tid() + offset
-            block(src, hs, f, dvv, L, G, X, fx, fy, b)
+            block(src, hs, f, dvv, L, G, scratch, R, b)
             for e in range(b * W, b * W + W):  # not unrolled
                 pointwise(src, hs, delta, c, f, metric, dvv, L, e)
 

@@ -95,11 +95,12 @@ class Hyperviscosity:
             self.hv_flux = wp.zeros((8, N), dtype=dtype, device=device)
         self.lanes = self._lanes()  # W of ``laplacian_across``, 0: the rows
         self._across_metrics: dict = {}  # a metric's rows 0..2 in the across layout, by its address
-        if self.lanes:  # each CPU thread's scratch X, fx, fy (``laplacian_across``)
+        if self.lanes:  # each CPU thread's scratch X, fx, fy and fx's memory as rows (``laplacian_across``)
             vw = wp.types.vector(length=self.lanes, dtype=dtype)
-            nn, slots = m.grid.np**2, max(1, m.launches.threads)
-            self._scratch = [wp.zeros((slots, nn), dtype=vw, device=device) for _ in range(3)]
-            self._per_part = {k: [a[i] for i in range(slots)] for k, a in zip(("X", "fx", "fy"), self._scratch)}
+            np_, slots = m.grid.np, max(1, m.launches.threads)
+            self._scratch = wp.zeros((slots, 3, np_**2), dtype=vw, device=device)
+            rows = [operators.row_vectors(self._scratch[i, 1].view(dtype).flatten(), np_) for i in range(slots)]
+            self._per_part = {"scratch": [self._scratch[i] for i in range(slots)], "R": rows}
         # the tensor ∇⁴'s second Laplacian reads its own fixed metric (``tensor_metric``); None: constant ν
         self.hv_tensor = None if m.hypervis_scaling is None else self.tensor_metric(m.hypervis_scaling)
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only

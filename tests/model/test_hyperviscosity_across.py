@@ -78,12 +78,15 @@ def test_across_gives_the_rows_bits(name, divergent):
         assert np.array_equal(got.view(np.int64), want.view(np.int64))
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("np_", [6, 8])
 @pytest.mark.parametrize("divergent", [False, True], ids=["nu_div = nu", "nu_div != nu, tensor"])
-def test_across_gives_the_rows_bits_in_float32(divergent):
+def test_across_gives_the_rows_bits_in_float32(divergent, np_, threads):
     """A float32 ∇⁴ (``ShallowWater``'s precision; 16 float32 elements a vector, one AVX-512
-    register) across elements has its rows' bits too: cube ne3 np6."""
-    g = cached_grid(3, 6)
-    across, rows = model(g, 16, 1, divergent, "float32"), model(g, 0, 1, divergent, "float32")
+    register) across elements has its rows' bits too: cube ne3 np6 (lane by lane), and ne4 np8
+    (``hyperviscosity_element.shuffled``: 16 × 16 transposes) on one and two threads."""
+    g = cached_grid(3 if np_ == 6 else 4, np_)
+    across, rows = model(g, 16, threads, divergent, "float32"), model(g, 0, threads, divergent, "float32")
     assert across.hv.lanes == 16 and rows.hv.lanes == 0 and across.hv.hv_L.dtype == wp.float32
     for got, want in zip(outputs(across), outputs(rows)):
         assert np.array_equal(got.view(np.int64), want.view(np.int64))

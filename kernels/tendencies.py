@@ -196,7 +196,7 @@ def tracer_suffix(tracers: int) -> str:
     return f"__q{int(tracers)}" if tracers else ""
 
 
-def _departed(departed: bool, dtype, tracers: int) -> bool:
+def reads_departed(departed: bool, dtype, tracers: int) -> bool:
     """Whether a tendency kernel reads the float32 state (``departed``); ValueError for one
     under float64 or with tracers (its continuity is written for u, v and h alone)."""
     if departed and (dtype is f64 or tracers):
@@ -229,7 +229,7 @@ def tendency(
     NP = int(np_static)
     SHIFT = dtype is not f64
     K = int(tracers)
-    DEPARTED = _departed(departed, dtype, K)
+    DEPARTED = reads_departed(departed, dtype, K)
     if K and not CONT:
         raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
     xtype = dtype if DEPARTED else f64
@@ -329,7 +329,7 @@ def tendency_element(
     GRAD = ADV or PG
     NP = int(np_)
     K = int(tracers)
-    DEPARTED = _departed(departed, dtype, K)
+    DEPARTED = reads_departed(departed, dtype, K)
     if K and not CONT:
         raise ValueError("tracers ride the continuity: a tendency with tracers needs the continuity term")
     vec, mat, along, across = row_derivatives(NP, dtype)

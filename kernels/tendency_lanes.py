@@ -9,7 +9,7 @@ import functools
 import warp as wp
 
 from .operators import CPU_FAST, row_derivatives, row_type, suffix, times, transpose16
-from .tendencies import _departed, f64, finish, inverse_det, term_flags
+from .tendencies import f64, finish, inverse_det, reads_departed, term_flags
 
 
 def across_views(np_: int, lanes: int, dtype, departed: bool) -> tuple[int, int]:
@@ -50,7 +50,7 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     CONT, ADV, _, PG, _ = term_flags(terms)
     NP, W = int(np_), int(lanes)
     NN = NP * NP
-    DEPARTED = _departed(departed, dtype, 0)
+    DEPARTED = reads_departed(departed, dtype, 0)
     SHIFT = dtype is not f64 and not DEPARTED  # the mixed float32: h − H₀ formed in float64
     xtype = dtype if DEPARTED else f64
     vw = wp.types.vector(length=W, dtype=dtype)

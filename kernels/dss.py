@@ -193,7 +193,7 @@ def combination(pattern: str, state=f64):
     ``state`` float32 (the float32 state's stages): summed in float32, k and each weight rounded
     to float32 once, two arrays as (c₀ + c₁)·s1 + (c₀·(s0 − s1) + c_k·k), the weights' sum
     taken in float64 before it is rounded: where the stage form's weights keep a constant
-    (``butcher.constant_keeping``: RK4's 1/3, 2/3 sum to 1 exactly) the float32 sum does too,
+    (``stage_plan.constant_keeping``: RK4's 1/3, 2/3 sum to 1 exactly) the float32 sum does too,
     s0 = s1 = C giving 1·C + 0 whatever fl₃₂(c₀) is. Rounded alone, fl₃₂(1/3) + fl₃₂(2/3) =
     1 + 3e-8: RK4 biased each step's state by a quarter of a float32 spacing (TC2 ne4 np4 a day,
     mass 3.2e-7 off without the fixer).

@@ -14,10 +14,11 @@ import warp as wp
 
 from ..model.launches import Update
 from .base import Stepper, StepStats, entry, work_array
-from .butcher import built_in_table, stage_form, stage_terms
+from .butcher import built_in_table
 from .capabilities import GraphCapture
 from .explicit import FBRK32
 from .multirate_options import MriOptions, SplitExplicitOptions, parse_mri, substeps_label
+from .stage_plan import stage_form, stage_terms
 
 f64 = wp.float64
 
@@ -288,7 +289,7 @@ class Mri(_Multirate):
     scaled by Δc_r). The inner ODE is integrated by ``inner`` with ``substeps`` fast steps a
     slow step (each solve ⌈d_r n⌉ of them): ``fbrk32`` (the forward–backward FB-RK(3,2) of
     ``explicit.FBRK32`` on the fast system), or ``ssprk3``/``rk4``, the engine's own tables
-    stepped through its ``butcher.stage_form``.
+    stepped through its ``stage_plan.stage_form``.
 
     Options (scene table ``[mri]``): ``method`` ("mis2", "mis3c", "mis4a",
     "mri_gark_erk33a": ``tables.MULTIRATE``; default "mis4a", third order) or a table of one's own

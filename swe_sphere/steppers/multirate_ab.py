@@ -51,7 +51,8 @@ from fractions import Fraction
 import numpy as np
 import warp as wp
 
-from .butcher import built_in_table, stage_form, stage_terms
+from .butcher import built_in_table
+from .stage_plan import stage_form, stage_terms
 
 f64 = wp.float64
 HISTORY = 3  # tendencies a level keeps: AB3's

@@ -25,10 +25,10 @@ from .butcher import (
     TableauOptions,
     imaginary_axis_limit,
     parse,
-    stage_form,
 )
 from .capabilities import ErrorEstimates, GraphCapture, TrialSteps
 from .imex_rk import ImexRK
+from .stage_plan import stage_form
 from .tables import COURANT_LIMITS, EXPLICIT
 
 f64 = wp.float64
@@ -44,7 +44,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
     recorded once from its ``stage_form``: s RHS evaluations a step.
 
     x(n+1) = x(n) + Δt Σ b_j K_j, K_i = F(Y_i),
-    Y_i = x(n) + Δt Σ_j a_ij K_j, written as ``butcher.stage_form``'s
+    Y_i = x(n) + Δt Σ_j a_ij K_j, written as ``stage_plan.stage_form``'s
     combinations, each written by the DSS of its stage's RHS
     (``ShallowWater.rhs_update``) rather than by a pass of its own: F is never
     stored, and the bits are those of storing F and combining after (ssprk3's and
@@ -53,7 +53,7 @@ class ExplicitRK(GraphCapture, ErrorEstimates, TrialSteps, Stepper):
 
     Under the model's ``precision = "float32_state"`` the stages run on a float32 state y (u, v,
     h − H₀) in float32 buffers, each chained combination's partial sums holding the whole of the
-    state (``butcher.stage_form``'s ``whole_partials``: a constant state kept to the bit). Where
+    state (``stage_plan.stage_form``'s ``whole_partials``: a constant state kept to the bit). Where
     the run keeps the float32 state between steps (``ShallowWater.held``, the default), x is y:
     the stages step it in place, the ∇⁴ acts on it on its steps (``ShallowWater.hyperviscosity``)
     and the mass fixer puts back the mass taken as the run's state was set

@@ -22,7 +22,7 @@ def mass_drift_bound(steps: int, nnodes: int) -> float:
     sums (``mass_change_bound``'s 2⌈log2 nnodes⌉ ε). Not every update's worst case added
     (``mass_change_bound``): each update rounds every node to nearest, unbiased, so their sum
     over the nodes walks at random far below ε; what adds up step by step is a bias, which the
-    combinations' float weights no longer carry (``butcher.constant_keeping``: fl(1/3) +
+    combinations' float weights no longer carry (``stage_plan.constant_keeping``: fl(1/3) +
     fl(2/3) = 1 − 2⁻⁵⁴ lowered h by 0.21 ε a step), nor the ∇⁴'s RKL1 stages
     (``Hyperviscosity.rkl1``: μ·t + ν·Y_{j−2} raised Galewsky's h, ne8 np8, by 0.19 ε a step).
     Measured since (native and generic CPU targets alike): TC5's h and q = 1 0.047 ε a step

@@ -81,7 +81,7 @@ def test_every_table_keeps_a_state_without_tendency_to_the_bit(name, per_element
     state must give its bits back, both layouts. The chained combinations (bs32, dp54,
     rdpk3sp35: partial sums of a combination's first terms) held a part of the state, C·5/9
     say, rounded to float32, and drifted by float32 spacings (dp54 3.7e-3 m in 5 steps) until
-    each partial sum held the whole (``butcher.stage_form``'s ``whole_partials``)."""
+    each partial sum held the whole (``stage_plan.stage_form``'s ``whole_partials``)."""
     grid = cached_grid(2, 4)
     model = ShallowWater(
         grid, ["continuity", "coriolis"], 1e-4 * np.sin(grid.lat), np.zeros(grid.nnodes), device="cpu",
@@ -192,7 +192,7 @@ def test_the_mass_fixer_sums_and_moves_the_depth_alike_in_both_layouts():
 def test_float32_stage_combinations_keep_a_constant_to_the_bit(element_rows):
     """A float32 stage combination of two arrays (``kernels.dss.combination``'s float32 form:
     (c₀ + c₁)·s1 + (c₀·(s0 − s1) + c_k·k), summed in float32) with RK4's weights 1/3, 2/3 (as
-    ``butcher.constant_keeping`` gives them) and a zero F gives back s0 = s1 to the bit, where
+    ``stage_plan.constant_keeping`` gives them) and a zero F gives back s0 = s1 to the bit, where
     the weights rounded alone (fl₃₂(1/3)·y + fl₃₂(2/3)·y) miss y at some nodes; with other
     values and an F it is the exact combination to 2 ε₃₂ of its terms, in both DSS layouts."""
     from unittest import mock

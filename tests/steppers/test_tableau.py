@@ -27,8 +27,9 @@ from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import ArgumentError
 from swe_sphere.ensemble import Perturbation
 from swe_sphere.steppers import STEPPERS
-from swe_sphere.steppers.butcher import TableauOptions, built_in_table, conditions, constant_keeping, stage_form
+from swe_sphere.steppers.butcher import TableauOptions, built_in_table, conditions
 from swe_sphere.steppers.runge_kutta import ImexRK, TableauARK, TableauRK
+from swe_sphere.steppers.stage_plan import constant_keeping, stage_form
 from swe_sphere.steppers.tables import EXPLICIT
 
 import helpers
@@ -56,7 +57,7 @@ BUILT_IN = {
 
 # the Shu–Osher forms the hand-written steppers recorded before they became tables: per
 # stage (c, the RHS's argument, updates (out, ((a, src), ...))), src "k" F times aΔt; a
-# combination's weights summing to 1 exactly in float64 (``butcher.constant_keeping``: 1/3 as
+# combination's weights summing to 1 exactly in float64 (``stage_plan.constant_keeping``: 1/3 as
 # 1 − fl(2/3), whose sum with fl(2/3) is 1, where fl(1/3) + fl(2/3) = 1 − 2⁻⁵⁴)
 Q = Fraction  # a fraction of Δt
 SHU_OSHER = {

@@ -9,7 +9,8 @@ each bundled scene's model (both layouts: per node, CUDA's default, and per
 element; float64 and float32, its tendency and ∇⁴) takes two steps of its stepper on ne = 2 np = 4 on
 the CPU, the float32 state (``float32_state``) stepped by rk4, every
 stepper (its solvers are the same on every device) on the scene
-with the most terms, the ∇⁴ with ν_div ≠ ν and the tensor (both precisions) and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
+with the most terms, np 8's per-element ∇⁴ (``laplacian_across``, both precisions) and float32
+state's tendency lanes (ne = 2), the ∇⁴ with ν_div ≠ ν and the tensor (both precisions) and the element filter; the DSS kernels are also built with ghosts (MPI; the Helmholtz kernels
 read ghosts at run time, one build for both). Warp's
 own modules (``warp.optim.linear``) are left to Warp's tests.
 """
@@ -188,6 +189,23 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             x = model.held.new(np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
             make_stepper("rk4", model, tc5.dt).step(x)
             model.held.float64(x)  # the diagnostics' float64 copy of a kept state
+    # np 8 on the CPU's per-element layout: the ∇⁴'s ``laplacian_across`` (np ≥ 5; float64 and
+    # float32) and the float32 state's tendency lanes (np 8's 16 × 16 transposes), which np 4 never
+    # launches: ne 2's 24 elements fill one block of 16 lanes and part of a second; the second
+    # pass's runs where the topology has its element edges (the CPU's rows)
+    monkeypatch.setattr(Topology, "element_rows", True)
+    start, fine = len(launched), CubedSphere(2, 8)
+    for precision in ("float64", "float32"):
+        z = np.zeros(fine.nnodes)
+        model = ShallowWater(
+            fine, ["hyperviscosity"], z, z, nu=1e15, device="cpu", per_element=True, precision=precision
+        )
+        model.hyperviscosity(model.new_state(), 100.0)
+    model = ShallowWater.from_scene(tc5, fine, per_element=True, precision="float32_state", compensated=False)
+    make_stepper("rk4", model, tc5.dt).step(model.held.new(np.stack(tc5.make_case().initial(fine.lat, fine.lon))))
+    # of these the lanes alone: the rest are np 4's kernels at another np, or the element-edge DSS
+    # (``Topology.edges``: the CPU's alone), whose ghosts the DSS check above would miss
+    launched[start:] = [k for k in launched[start:] if "_across" in k.key]
     ghosted = [factory(*args, ghosts=True, **dict(options)) for factory, args, options in dss_args]
     return [k for k in launched if k.func.__module__.startswith("swe_sphere.")], ghosted
 
@@ -328,6 +346,10 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         f"tendency_across__np4_w16__{departed}__departed_float32",
     ):
         assert key in keys, key  # the float32 state's tendency, per node and per element (its lanes at np 4)
+    # np 8's per-element ∇⁴ (both precisions) and the float32 state's np 8 lanes
+    for key in ("laplacian_across__first", "laplacian_across__second"):
+        assert key in keys and key + "_float32" in keys, key
+    assert f"tendency_across__np8_w16__{departed}__departed_float32" in keys
     for key in ("to_departure", "add_increment", "from_departure"):
         assert key in keys, key
     assert any(k.key.endswith("__state_float32") for k in launched)  # the float32 stages' combinations

@@ -48,10 +48,11 @@ def scene_stepper(scene: Scene, model: ShallowWater):
     return stepper
 
 
-def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
+def partition(scene: Scene, case, comm, backend: Backend, threads: int | None = None) -> Topology:
     """This rank's part of the scene's grid, assembled over ``comm``'s ranks (None: one
     process): the elements of ``topology.rank_parts``, by the stepper's element levels where
-    its work goes by levels (lts; decided on rank 0 from the whole grid and broadcast)."""
+    its work goes by levels (lts; decided on rank 0 from the whole grid and broadcast), its
+    launches split over ``threads`` CPU threads (None: ``Backend.threads``)."""
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     mesh = scene.make_mesh()  # None: the equiangular cube
     level = None
@@ -60,4 +61,5 @@ def partition(scene: Scene, case, comm, backend: Backend) -> Topology:
         mine = STEPPERS[scene.stepper].partition_levels(whole, scene.stepper_options) if rank == 0 else None
         level = comm.bcast(mine, root=0)
     # the halos carry a state's rows, a tracer's mass each among them
-    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level, rows=3 + len(scene.tracers))
+    rows = 3 + len(scene.tracers)
+    return on_ranks(scene.ne, scene.np, case.planet.a, comm, backend, mesh, level, rows=rows, threads=threads)

@@ -73,17 +73,26 @@ def rank_parts(ne: int, size: int, mesh=None, level: np.ndarray | None = None) -
 
 
 def on_ranks(
-    ne: int, np_: int, radius: float, comm, backend: Backend, mesh=None, level=None, rows: int = MAX_ROWS
+    ne: int,
+    np_: int,
+    radius: float,
+    comm,
+    backend: Backend,
+    mesh=None,
+    level=None,
+    rows: int = MAX_ROWS,
+    threads: int | None = None,
 ) -> Topology:
     """This rank's ``Topology`` of the grid (``ne``, ``np_``, ``radius`` m; ``mesh`` a ``Mesh``
     where ``ne`` is 0) split over ``comm``'s ranks (None: one process) by ``rank_parts``
     (``level``: an element's level, as there): its part of the elements as a ``CubedSphere``,
     assembled with the others' (HOMME's ``prim_init1`` decomposition); ``rows`` the most rows an
-    exchange carries (``Topology``'s)."""
+    exchange carries (``Topology``'s); ``threads`` its CPU threads (None: ``Backend.threads``)."""
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     parts = rank_parts(ne, size, mesh, level)
     local = CubedSphere(ne, np_, radius, elements=parts[rank], mesh=mesh)  # this rank's only
-    return Topology(local, backend, backend.threads(), comm, parts=parts, rows=rows)
+    threads = backend.threads() if threads is None else threads
+    return Topology(local, backend, threads, comm, parts=parts, rows=rows)
 
 
 def _lookup(keys: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -81,7 +81,7 @@ class Members:
         units.check_memory(scene, comm if members is None else self.comm, backend, members)
         if members is None:
             unit, self.dfi, (self.case, topo, self.grid, hs, fcor, scorer) = units.element_unit(
-                scene, backend, comm, given, start, graphs, options.get("per_element")
+                scene, backend, comm, given, start, graphs, options.get("per_element"), options.get("threads")
             )
             self.units, self.layout, self.scorer, self.nnodes = [unit], "shared", [scorer], topo.nnodes_total
             self.root, self.g = topo.comm.rank == 0, [unit.model.g]

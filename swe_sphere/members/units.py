@@ -76,19 +76,23 @@ def check_memory(scene: Scene, comm, backend: Backend, members: int | None = Non
     backend.check_memory(need, what, comm)
 
 
-def element_unit(scene: Scene, backend: Backend, comm, start, initial, graphs: str, per_element=None) -> tuple:
+def element_unit(
+    scene: Scene, backend: Backend, comm, start, initial, graphs: str, per_element=None, threads=None
+) -> tuple:
     """(the ``Unit`` of a single run, its digital filter's result or None, (case, topology, whole
     grid, whole hs, whole fcor, scorer)): the one member of ``scene`` on this rank's share of the
     elements over ``comm`` (``config.parts.partition``), started from ``start`` (3 + K, nnodes) on
     rank 0 (``ON_ROOT`` on the others: a restart's), or from the function ``initial`` (lat, lon) ->
     (h, u, v), else from the case's state, then the scene's digital filter and its tracers' masses
     (``cases.tracers.with_tracers``). The whole grid, hs and fcor on rank 0 (None elsewhere).
-    ``per_element``: the model's kernel layout (None: the backend's)."""
+    ``per_element``, ``threads``: the model's kernel layout and CPU threads (None: the backend's)."""
     case = scene.make_case()
-    topo = partition(scene, case, comm, backend)
+    topo = partition(scene, case, comm, backend, threads)
     local = topo.grid
     grid = topo.whole_grid()  # for diagnostics and output: on rank 0 only
-    model = ShallowWater.from_scene(scene, local, case, device=backend.device, topology=topo, per_element=per_element)
+    model = ShallowWater.from_scene(
+        scene, local, case, device=backend.device, topology=topo, per_element=per_element, threads=topo.threads
+    )
     fcor, hs = model.operators.values("fcor"), model.operators.values("hs")  # the case's, as the model holds them
     whole_fcor, whole_hs = topo.gather(fcor), topo.gather(hs)
     stepper = scene_stepper(scene, model)

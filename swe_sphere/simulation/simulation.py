@@ -111,7 +111,8 @@ class Simulation:
     blow_up : {"stop", "drop"}
         Members: a blow-up stops every member, or drops the member and goes on ("in_turn").
     per_element, threads : bool or None, int or None
-        Members: the models' kernel layout and CPU threads (``ShallowWater``'s; None: the device's).
+        The models' kernel layout and CPU threads (``ShallowWater``'s; None: the device's), a single
+        run's as the members'.
     **overrides
         As for ``swe_sphere.run``: ``ne``, ``np``, ``dt``, ``days``, ``stepper``, ``precision``
         and any scene value by its table; with ``members``, an [ensemble] table

@@ -126,3 +126,21 @@ def test_a_dropped_members_invariants_and_errors_are_nan_as_its_state():
     one.run()
     mass = one.members.diagnose(one.scene.days * 86400.0)["mass"]
     assert invariants[2]["mass"] == mass and np.isfinite([*invariants[0].values(), *errors[0].values()]).all()
+
+
+@pytest.mark.filterwarnings("ignore::swe_sphere.members.initial.MembersAlike")  # members alike on purpose
+@pytest.mark.parametrize("members", [None, 2], ids=["one", "members"])
+def test_threads_and_the_layout_reach_the_model_of_one_member_and_many(members):
+    """``Simulation(threads=, per_element=)`` build the models (their launches and topology) with
+    them, a single run's as the members' (a single run ignored ``threads`` before: the backend's
+    count); a launch split over more threads steps the same bits."""
+    base = Simulation("galewsky", "cpu", members=members, progress=False, **SMALL)
+    threads = base.model.threads + 1  # not the default, whatever SWE_SPHERE_THREADS says
+    sim = Simulation("galewsky", "cpu", members=members, threads=threads, per_element=False, progress=False, **SMALL)
+    m = sim.model
+    assert m.threads == m.topology.threads == m.launches.threads == threads and not m.launches.per_element
+    assert base.model.launches.per_element  # the CPU's default layout
+    per_node = Simulation("galewsky", "cpu", members=members, per_element=False, progress=False, **SMALL)
+    for run in (sim, per_node):
+        run.advance(2 * 900 / 86400)
+    assert np.array_equal(sim.states(), per_node.states())

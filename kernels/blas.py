@@ -6,9 +6,13 @@ otherwise exceed the arithmetic; 1 on CUDA). Dim (rows, N/block); ``offset``
 counts blocks.
 """
 
+import functools
 from typing import Any
 
 import warp as wp
+
+from .dss import combination
+from .operators import suffix
 
 f64 = wp.float64
 wp.set_module_options({"enable_backward": False})
@@ -96,6 +100,33 @@ def axpbypczpdw_at(
         p = nodes[i]
         for r in range(3):
             out[r, p] = a * x[r, p] + b * y[r, p] + c * z[r, p] + d * w[r, p]
+
+
+@functools.cache
+def combined_state(arrays: int, state):
+    """out = c₀·x (``arrays`` 1) or c₀·x + c₁·y (2) of a float32 state's arrays (``state`` its
+    float type; out may alias either) in the arithmetic of the float32 stages' DSS updates
+    (``dss.combination``'s float32 form: the weights rounded once, two arrays as
+    (c₀ + c₁)·y + c₀·(x − y), so that weights summing to 1 keep a constant to the bit): a stage's
+    rows that its tendency does not write (a model without the continuity, or with it alone). Kernel
+    (c, x, y, out, block, offset), c a vec3d; dim (rows, N/block)."""
+    combine = combination("a" * int(arrays), state)
+
+    def kernel(
+        c: wp.vec3d,
+        x: wp.array2d(dtype=state),
+        y: wp.array2d(dtype=state),
+        out: wp.array2d(dtype=state),
+        block: int,
+        offset: int,
+    ):
+        r, k = wp.tid()
+        start = (k + offset) * block
+        for p in range(start, start + block):
+            out[r, p] = combine(c, state(0.0), x, y, r, p)
+
+    kernel.__qualname__ = kernel.__name__ = f"combined_{arrays}" + suffix(state)
+    return wp.kernel(kernel, enable_backward=False, module="unique")
 
 
 @wp.kernel

@@ -154,8 +154,16 @@ class LaunchRecorder:
     def lincomb(self, out, terms):
         """The recorded launch of out = Σ c·x over one to four (c, x) terms of (rows, N)
         arrays (row views such as ``x[2:3]`` included; out may alias any x),
-        ``blas.axpby``/``axpbypcz``/``axpbypczpdw`` (one term: c·x + 0·x)."""
+        ``blas.axpby``/``axpbypcz``/``axpbypczpdw`` (one term: c·x + 0·x); of a float32 state's
+        arrays (out not float64) one or two terms, ``blas.combined_state`` (ValueError for more)."""
         terms = tuple(terms)
+        if out.dtype is not f64:
+            if not 1 <= len(terms) <= 2:
+                raise ValueError(f"a float32 state's combination is of one or two arrays (got {len(terms)})")
+            c = wp.vec3d(*(c for c, _ in terms), *[0.0] * (3 - len(terms)))
+            arrays = [x for _, x in terms]
+            kernel = blas.combined_state(len(terms), out.dtype)
+            return self.pointwise(kernel, out.shape[0], [c, arrays[0], arrays[-1], out])
         if len(terms) == 1:
             terms += ((0.0, terms[0][1]),)
         args = [a for c, x in terms for a in (f64(c), x)]

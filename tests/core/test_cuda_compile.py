@@ -189,6 +189,10 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
             x = model.held.new(np.stack(tc5.make_case().initial(grid.lat, grid.lon)))
             make_stepper("rk4", model, tc5.dt).step(x)
             model.held.float64(x)  # the diagnostics' float64 copy of a kept state
+    # rows no term writes (TC1's wind): the float32 state's combinations of the state alone
+    tc1 = load_scene("tc1_cosine_bell", ne=2, np_=4)
+    model = ShallowWater.from_scene(tc1, grid, per_element=False, precision="float32_state")
+    make_stepper("rk4", model, tc1.dt).step(model.held.new(np.stack(tc1.make_case().initial(grid.lat, grid.lon))))
     # np 8 on the CPU's per-element layout: the ∇⁴'s ``laplacian_across`` (np ≥ 5; float64 and
     # float32) and the float32 state's tendency lanes (np 8's 16 × 16 transposes), which np 4 never
     # launches: ne 2's 24 elements fill one block of 16 lanes and part of a second; the second
@@ -353,6 +357,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
     for key in ("to_departure", "add_increment", "from_departure"):
         assert key in keys, key
     assert any(k.key.endswith("__state_float32") for k in launched)  # the float32 stages' combinations
+    assert {"combined_1_float32", "combined_2_float32"} <= keys  # and of rows no term writes
     plain_dss = {
         k.module.name
         for k in launched

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import functools
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -55,36 +56,50 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_pools_after_fork)
 
 
-class _Part:
-    """One node range of a recorded CPU launch, called straight through Warp's CPU
-    entry point with its argument struct built once."""
+class DirectLaunch:
+    """A recorded CPU launch over one node range called straight through Warp's CPU entry
+    point with its argument struct built once (``wp.Launch.launch`` packs a new struct from
+    every argument on each call: about 1 µs an argument). ``kernel``, ``fwd_args``,
+    ``set_param_by_name`` and ``launch()`` as on the ``wp.Launch`` it wraps (``whole``).
+
+    ``launch()`` takes Warp's own path while the device captures a graph (``wp.ScopedCapture``,
+    ``Device.is_capturing``: Warp records the launch then) and for what the direct call does not
+    cover (cooperative CPU blocks, adjoints, Warp internals other than 1.19's); ``run`` is the
+    direct call alone, for a ``SplitLaunch``'s worker threads."""
 
     def __init__(self, launch: wp.Launch):
-        self.launch = launch
+        self.whole, self.kernel, self.device = launch, launch.kernel, launch.device
+        self.run, self._args = launch.launch, None
         hooks = launch.hooks
         if launch.block_dim > 1 or hooks.forward is None or launch.adjoint:
-            self.run = launch.launch  # Warp's own path (cooperative CPU blocks, adjoints)
             return
-        try:  # Warp internals (1.19): fall back to the public launch if they change
-            kernel = launch.kernel
-            fields = [(a.label, type(p)) for a, p in zip(kernel.adj.args, launch.params[1:])]
+        try:  # Warp internals (1.19): Warp's own path if they change
+            self._labels = {a.label: k for k, a in enumerate(self.kernel.adj.args)}
+            fields = [(a.label, type(p)) for a, p in zip(self.kernel.adj.args, launch.params[1:])]
             args = type("ArgsStruct", (ctypes.Structure,), {"_fields_": fields})()
             for (name, _), value in zip(fields, launch.params[1:]):
                 setattr(args, name, value)
-            forward, bounds_ref, args_ref = hooks.forward, ctypes.byref(launch.bounds), ctypes.byref(args)
+            self.run = functools.partial(hooks.forward, ctypes.byref(launch.bounds), ctypes.byref(args))
+            self._args = args
         except (AttributeError, TypeError):
             self.run = launch.launch
-            return
-        self._args = args
-        self.run = lambda: forward(bounds_ref, args_ref)
+
+    @property
+    def fwd_args(self):
+        """The launch's arguments as given (``wp.Launch.fwd_args``)."""
+        return self.whole.fwd_args
 
     def set_param_by_name(self, name: str, value) -> None:
-        """Change one (non-array) argument of the recorded launch."""
-        self.launch.set_param_by_name(name, value)
-        args = getattr(self, "_args", None)
-        if args is not None:
-            index = [a.label for a in self.launch.kernel.adj.args].index(name)
-            setattr(args, name, self.launch.params[index + 1])
+        """Change one argument of the recorded launch (``wp.Launch.set_param_by_name``)."""
+        self.whole.set_param_by_name(name, value)
+        if self._args is not None:
+            setattr(self._args, name, self.whole.params[self._labels[name] + 1])
+
+    def launch(self) -> None:
+        if not self.device.is_capturing:
+            self.run()
+        else:  # a capture in progress records Warp's launches only
+            self.whole.launch()
 
 
 class SplitLaunch:
@@ -108,7 +123,7 @@ class SplitLaunch:
             part.set_param_by_name("offset", starts[k] + start)
             for name, values in (per_part or {}).items():
                 part.set_param_by_name(name, values[k])
-            self.parts.append(_Part(part))
+            self.parts.append(DirectLaunch(part))
         self._workers = len(self.parts) - 1
 
     def set_param_by_name(self, name: str, value) -> None:
@@ -184,17 +199,28 @@ def record(
     start + n − 1 of the node or element index: a range of the elements). ValueError for an
     array (or a struct's array field) on another device than the launch's (``check_devices``). With ``threads`` > 1 on a CPU device and at least
     MIN_POINTS_PER_PART nodes per thread, returns a ``SplitLaunch`` over that
-    many index ranges (cut at multiples of ``block``); otherwise a plain
-    ``wp.Launch`` (``per_part`` values of the first range)."""
+    many index ranges (cut at multiples of ``block``); otherwise one launch (``per_part``
+    values of the first range): a ``DirectLaunch`` on a CPU, the ``wp.Launch`` on CUDA."""
     rows, n = (None, dim) if isinstance(dim, int) else dim
     backend = device if isinstance(device, Backend) else Backend.of(device)
-    check_devices(kernel, inputs, backend)
     parts = min(backend.launch_parts(threads), n * nodes_per_index // MIN_POINTS_PER_PART)
     if n % block == 0:
         parts = min(parts, n // block)  # no empty range
-    launch = wp.launch(kernel, dim, [*inputs, start], device=backend.device, record_cmd=True)
     if parts <= 1:
+        launch = record_one(kernel, dim, [*inputs, start], device=backend)
         for name, values in (per_part or {}).items():
             launch.set_param_by_name(name, values[0])
         return launch
+    check_devices(kernel, inputs, backend)
+    launch = wp.launch(kernel, dim, [*inputs, start], device=backend.device, record_cmd=True)
     return SplitLaunch(launch, rows, split_points(n, block, parts), per_part, start)
+
+
+def record_one(kernel, dim, inputs, *, device):
+    """Record ``kernel`` over ``dim`` with ``inputs`` as they are (no offset added), one launch:
+    a ``DirectLaunch`` on a CPU, the ``wp.Launch`` on CUDA; ``device`` as ``record``'s.
+    ValueError for an array elsewhere (``check_devices``)."""
+    backend = device if isinstance(device, Backend) else Backend.of(device)
+    check_devices(kernel, inputs, backend)
+    launch = wp.launch(kernel, dim, inputs, device=backend.device, record_cmd=True)
+    return DirectLaunch(launch) if backend.host else launch

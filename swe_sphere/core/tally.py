@@ -3,7 +3,8 @@ and copies, and host reads (the measure of ``benchmarks/gpu/gpu_model.py`` and o
 the tests that a step needs no host round trip).
 
 ``instrumented(tally)`` wraps Warp's launch entry points (recorded
-``wp.Launch.launch`` and direct ``wp.launch``), its memsets and copies
+``wp.Launch.launch`` and direct ``wp.launch``), the recorded CPU launches the model calls straight
+through (``parallel.DirectLaunch.launch``), its memsets and copies
 (``zero_``, ``fill_``, ``assign``, ``wp.copy``) and its read-back
 ``wp.array.numpy`` and the wait for an event (``wp.synchronize_event``: a read into page-locked
 memory, ``core.backend.HostRead``) for as long as the context lasts; a ``Tally`` counts what
@@ -20,6 +21,8 @@ import contextlib
 import functools
 
 import warp as wp
+
+from .parallel import DirectLaunch
 
 
 @functools.cache
@@ -136,6 +139,7 @@ def instrumented(tally: Tally):
     The wrappers cost host time per launch: time nothing inside."""
     real = {
         "launch": wp.Launch.launch,
+        "direct": DirectLaunch.launch,
         "wp.launch": wp.launch,
         "wp.copy": wp.copy,
         "wp.synchronize_event": wp.synchronize_event,
@@ -145,6 +149,10 @@ def instrumented(tally: Tally):
     def record_launch(self, *a, **k):
         tally.kernel(self.kernel, self.fwd_args or [])
         return real["launch"](self, *a, **k)
+
+    def direct_launch(self):  # once: not again where it takes Warp's own path
+        tally.kernel(self.kernel, self.fwd_args or [])
+        return tally.paused(real["direct"])(self)
 
     def launch(kernel, dim=None, inputs=(), outputs=(), *a, **k):
         if not k.get("record_cmd"):
@@ -171,6 +179,7 @@ def instrumented(tally: Tally):
         return real["wp.synchronize_event"](event)
 
     wp.Launch.launch, wp.launch, wp.copy, wp.array.numpy = record_launch, launch, copy, numpy
+    DirectLaunch.launch = direct_launch
     wp.synchronize_event = synchronize_event
     for name, factor in (("zero_", 1), ("fill_", 1), ("assign", 2)):
         setattr(wp.array, name, memop(name, factor))
@@ -178,6 +187,7 @@ def instrumented(tally: Tally):
         yield tally
     finally:
         wp.Launch.launch, wp.launch, wp.copy = real["launch"], real["wp.launch"], real["wp.copy"]
+        DirectLaunch.launch = real["direct"]
         wp.synchronize_event = real["wp.synchronize_event"]
         for name in ("zero_", "fill_", "assign", "numpy"):
             setattr(wp.array, name, real[name])

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.parallel import record_one
 from ..kernels import blas, departure
 
 f64 = wp.float64
@@ -58,21 +59,41 @@ class MassFixer:
             by_element = whole
         return np.cumsum(by_element, axis=1)[:, -1]
 
-    def _launch(self, x, slot: int) -> None:
-        key = (x.ptr, slot)
-        if key not in self._recorded:
-            lanes, topo = self.launches.lanes, self.topology
+    def _recorded_for(self, key, build) -> list:
+        """The launches recorded under ``key`` (``build()`` on first use): replayed each step
+        with no argument set again."""
+        launches = self._recorded.get(key)
+        if launches is None:
+            launches = self._recorded[key] = build()
+        return launches
+
+    def _sum(self, x, slot: int) -> None:
+        """masses[slot] = x's mass by element, totals[slot] = each member's sum of them over the
+        whole grid (``whole_totals``' bits)."""
+        topo = self.topology
+
+        def build():
+            lanes = self.launches.lanes
             per = self.block // (self.block if self.launches.per_element else 1)  # an element's lanes
             inputs = [lanes(x[2]), lanes(topo.spheremp[: topo.N]), per, slot, self.masses]
-            self._recorded[key] = self.launches.elements(departure.element_mass, inputs)
-        self._recorded[key].launch()
+            launches = [self.launches.elements(departure.element_mass, inputs)]
+            if not topo.distributed:
+                rows = self.masses[slot].reshape((self.members, -1))  # a member's elements a row
+                launches.append(record_one(blas.row_totals, 1, [rows, self.totals[slot]], device=topo.backend))
+            return launches
+
+        for launch in self._recorded_for((x.ptr, slot), build):
+            launch.launch()
+        if topo.distributed:  # a host read: a step over several ranks is never a graph (one member)
+            totals = self.totals.numpy()
+            totals[slot] = self.whole_totals(self.masses.numpy()[slot : slot + 1])
+            self.totals.assign(totals)
 
     def measure(self, x: wp.array2d) -> None:
         """Take x's mass ∫h (m³ a member; of a float32 state's h − H₀, less H₀·area) as the one
         to keep: a step's start, or the state a run keeps in float32 as it is set
         (``model.held.HeldState``)."""
-        self._launch(x, 0)
-        self._total(0)
+        self._sum(x, 0)
 
     @property
     def targets(self) -> list[float]:
@@ -92,17 +113,9 @@ class MassFixer:
         took (each node's move rounded to x's float type: below a float32 state's spacing it is
         lost, and the mass left out stays a deficit that the next step's fixer puts back with its
         own)."""
-        self._launch(x, 1)
-        self._total(1)
-        lanes = self.topology.N // self.members // (self.block if self.launches.per_element else 1)  # a member's
-        self.launches.run_lanes(departure.restore_mass, x[2], self.totals, f64(self.area), lanes)
+        self._sum(x, 1)
+        self._recorded_for((x.ptr, "restore"), lambda: [self._restore_launch(x)])[0].launch()
 
-    def _total(self, slot: int) -> None:
-        """totals[slot] = each member's sum of masses[slot] over the whole grid (``whole_totals``' bits)."""
-        if self.topology.distributed:  # a host read: a step over several ranks is never a graph (one member)
-            totals = self.totals.numpy()
-            totals[slot] = self.whole_totals(self.masses.numpy()[slot : slot + 1])
-            self.totals.assign(totals)
-        else:
-            rows = self.masses[slot].reshape((self.members, -1))  # a member's elements a row
-            wp.launch(blas.row_totals, 1, [rows, self.totals[slot]], device=self.topology.device)
+    def _restore_launch(self, x):
+        lanes = self.topology.N // self.members // (self.block if self.launches.per_element else 1)  # a member's
+        return self.launches.lanes_launch(departure.restore_mass, x[2], self.totals, f64(self.area), lanes)

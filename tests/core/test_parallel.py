@@ -193,3 +193,39 @@ def test_a_launch_is_refused_arrays_on_another_device():
     kernel = hyperviscosity_node.laplacian_node(False, False)
     assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], card) == ["f.east (cpu)"]
     assert parallel.foreign_arrays(kernel, [None, None, None, None, frame], "cpu") == []
+
+
+def test_one_range_launch_called_directly():
+    """A launch of one range on the CPU (``parallel.record`` with one thread) is a ``DirectLaunch``:
+    Warp's entry point called with its argument struct built once, the bits of Warp's own launch,
+    an argument set in place reaching it; while the CPU captures a graph it goes through Warp's
+    launch, so the graph holds it (a direct call would run at once and be missing from the
+    replay); ``core.tally`` counts it once."""
+    from swe_sphere.core.tally import Tally, instrumented
+    from swe_sphere.kernels import blas
+
+    f64 = wp.float64
+    x = wp.array(np.arange(8.0).reshape(2, 4) / 3.0, dtype=f64)
+    y = wp.array(np.full((2, 4), 0.7), dtype=f64)
+    out, warps = wp.zeros((2, 4), dtype=f64), wp.zeros((2, 4), dtype=f64)
+    launch = parallel.record(blas.axpby, (2, 4), [f64(0.3), x, f64(1.1), y, out, 1], device="cpu", threads=1)
+    assert isinstance(launch, parallel.DirectLaunch) and launch.kernel is blas.axpby
+    launch.launch()
+    wp.launch(blas.axpby, (2, 4), [f64(0.3), x, f64(1.1), y, warps, 1, 0], device="cpu")
+    assert np.array_equal(out.numpy(), warps.numpy())
+    assert np.array_equal(out.numpy(), 0.3 * x.numpy() + 1.1 * y.numpy())
+    launch.set_param_by_name("a", f64(-2.0))
+    launch.launch()
+    assert np.array_equal(out.numpy(), -2.0 * x.numpy() + 1.1 * y.numpy())
+    out.zero_()
+    with wp.ScopedCapture(device="cpu") as capture:
+        launch.launch()
+    assert not out.numpy().any()  # recorded, not run
+    wp.capture_launch(capture.graph)
+    assert np.array_equal(out.numpy(), -2.0 * x.numpy() + 1.1 * y.numpy())
+    tally = Tally()
+    with instrumented(tally), tally.counting():
+        launch.launch()
+        with wp.ScopedCapture(device="cpu"):
+            launch.launch()  # Warp's own path: still one launch
+    assert dict(tally.launches) == {blas.axpby.key: 2}

@@ -2,7 +2,8 @@
 
 For ``--scene`` on its own grid (or ``--ne``/``--np``) at its own stepper, Δt and ∇⁴ schedule
 (``--every`` to change it), ``--steps`` steps after a whole ∇⁴ cycle to record and compile; every
-recorded launch (``wp.Launch.launch``), ``wp.copy``, ``zero_`` and ``assign`` timed by the CPU
+recorded launch (``wp.Launch.launch``, and the ``launch`` of the model's one-range CPU launches,
+which call Warp's entry point directly), ``wp.copy``, ``zero_`` and ``assign`` timed by the CPU
 clock around it and summed by kernel key: calls a step, ms a step and ms a call, and what the
 step spends outside them (Python, the stepper's bookkeeping). A kernel here reads what the
 passes before it left in the caches, which is why its figure differs from
@@ -84,6 +85,9 @@ def main() -> None:
         every = sim.scene.hypervis_every
         for _ in range(2 * every):  # recorded and compiled: whole cycles of the ∇⁴
             sim.stepper.step(sim.x)
+        launches = sim.model.launches  # one thread: its recorded launches call Warp's entry point directly
+        kinds = {type(one) for key in launches.keys() for one in launches.recorded(key)} - {wp.Launch}
+        wrapped += tuple((kind, "launch", lambda a: a[0].kernel.key) for kind in kinds)
         originals = [(owner, name, getattr(owner, name)) for owner, name, _ in wrapped]
         for (owner, name, key), (_, _, call) in zip(wrapped, originals):
             setattr(owner, name, timed(tally, call, key))

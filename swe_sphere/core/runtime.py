@@ -1,8 +1,10 @@
 """The machine a run meets: Warp initialised quietly, memory
 estimated before anything large is allocated.
 
-Memory figures are from ``benchmarks/micro/memory.py`` (tc5_mountain ne = 60 np = 4,
-leapfrog_trapezoidal): a run's resident memory above the import baseline is
+Memory figures are from ``benchmarks/micro/memory.py`` (since removed: ``git show
+6b0c949:benchmarks/micro/memory.py``; a run's peak memory and the arrays it holds are now
+``benchmarks/micro/precision_speed.py``'s ``--peak-ne`` and ``--arrays``) on tc5_mountain ne = 60
+np = 4, leapfrog_trapezoidal: a run's resident memory above the import baseline is
 about 1 020 bytes per element-local node (state, metric, model and stepper work
 arrays, the host grid and its construction temporaries, output buffers). The
 semi-implicit, implicit and exponential steppers add their own buffers (below).

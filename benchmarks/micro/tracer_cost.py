@@ -2,9 +2,16 @@
 
 TC5 at ne NE np 4 on one CPU thread, the scene's stepper (rk4) and ∇⁴ (every k steps, and every
 step: ``--every 1``): the CPU seconds (``time.process_time``, one thread: the clock this shared
-machine can still compare) of a step with K tracers and without, interleaved in rounds, the
-median of each taken. Prints the ratio (step with K − step without) / (K · step without);
-``--limiter optimization``: the tracers limited (their limiter's cost counted with theirs).
+machine can still compare) of a step with K tracers and without, in rounds that take the two in
+turn, the median of each taken. Prints the ratio (step with K − step without) / (K · step
+without); ``--limiter optimization``: the tracers limited (their limiter's cost counted with theirs).
+
+Each round builds its model, takes one ∇⁴ cycle untimed, times ``--steps`` steps and lets the model
+go, so that the process holds one model at a time, warm, as a user's run does. Until 2026-11-30 the
+two models lived side by side and alternated every 16 steps (their Warp arrays 41 and 46 MB at
+ne30, against this machine's 32 MB L3), so each round began with the other model's arrays in the
+caches, which a user's run never does; a cold start adds about the same time to both steps, so it
+pulled the ratio down.
 
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 16 --tracers 1 --rounds 5
 """
@@ -12,6 +19,7 @@ median of each taken. Prints the ratio (step with K − step without) / (K · st
 from __future__ import annotations
 
 import argparse
+import gc
 import statistics
 import sys
 import time
@@ -37,7 +45,8 @@ def stepping(scene, grid, tracers: int, every: int | None, limiter: str = "none"
     u, v, h = case.initial(grid.lat, grid.lon)
     x = model.new_state(u, v, h, masses=np.repeat(h[None], tracers, axis=0))
     stepper = make_stepper(scene.stepper, model, scene.dt)
-    stepper.step(x)  # records the launches (and compiles)
+    for _ in range(1 + hv["hypervis_every"]):  # records the launches (and compiles), then a warm ∇⁴ cycle
+        stepper.step(x)
 
     def step() -> float:
         t0 = time.process_time()
@@ -52,7 +61,9 @@ def main() -> None:
     parser.add_argument("--ne", type=positive(int), default=16)
     parser.add_argument("--tracers", type=positive(int), default=1)
     parser.add_argument("--rounds", type=positive(int), default=5)
-    parser.add_argument("--steps", type=positive(int), default=16, help="steps a round (a multiple of the ∇⁴'s every)")
+    parser.add_argument(
+        "--steps", type=positive(int), default=16, help="steps timed a round (a multiple of the ∇⁴'s every)"
+    )
     parser.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
     parser.add_argument("--limiter", default="none", help="the tracers' limiter (a scene's tracers.limiter)")
     args = parser.parse_args()
@@ -67,12 +78,14 @@ def measure(args, figures: dict) -> None:
     """``main``'s rounds and line; the ratio into ``figures``."""
     scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
     grid = CubedSphere(args.ne, 4)
-    runs = {k: stepping(scene, grid, k, args.every, args.limiter) for k in (0, args.tracers)}
-    seconds = {k: [] for k in runs}
+    seconds = {k: [] for k in (0, args.tracers)}
     for _ in range(args.rounds):
-        for k, step in runs.items():  # interleaved: the machine's load falls on both alike
+        for k in seconds:  # interleaved: the machine's load falls on both alike
+            step = stepping(scene, grid, k, args.every, args.limiter)
             seconds[k].append(sum(step() for _ in range(args.steps)) / args.steps)
-    bare, carried = (statistics.median(seconds[k]) for k in runs)
+            del step
+            gc.collect()  # the model let go before the next is built: one model held at a time
+    bare, carried = (statistics.median(seconds[k]) for k in seconds)
     every = scene.hypervis_every if args.every is None else args.every
     figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
     print(

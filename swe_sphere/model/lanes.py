@@ -79,25 +79,40 @@ class TendencyLanes:
             held.update(range(start // W, -(-stop // W)))
         return sorted(held)
 
-    def geometry(self) -> list:
+    def geometry(self, departed: bool = False) -> list:
         """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; D's rows
         without topography: unread) and spheremp in the across layout, W-vectors of the tendency's type, from
-        their float64 values (``ElementOperators.values``)."""
+        their float64 values (``ElementOperators.values``). ``departed``: for a float32 state's
+        tendency, which takes metdet as det D (``tendency_lanes.tendency_across``'s determinant) and
+        reads none: fcor's array stands in, and metdet's (4 B a node) is made only where a launch
+        reads it (the mixed float32's, float64's)."""
+        if departed and self.dtype is wp.float32:
+            D, Dinv, _, fcor, *rest = self._common()
+            return [D, Dinv, fcor, fcor, *rest]
+        geometry = self._common()
+        if geometry[2] is None:
+            geometry[2] = self._across(self.model.operators.values("metdet"), 1)
+        return geometry
+
+    def _across(self, values, rows: int):
+        """``values`` (rows, N) in the across layout (``operators.across_layout``, its last block padded),
+        W-vectors of the tendency's type rounded once (as ``ElementOperators.rounded``); one row as (·)."""
+        m, vw = self.model, wp.types.vector(length=self.lanes, dtype=self.dtype)
+        values = operators.across_layout(np.reshape(values, (rows, -1)), self.lanes, m.grid.np, pad=True)
+        out = wp.array(values, dtype=vw, device=m.device)
+        return out if rows > 1 else out[0]
+
+    def _common(self) -> list:
+        """``geometry``'s arrays, made on first use, metdet None until a launch reads it."""
         if self._geometry is None:
-            m, W = self.model, self.lanes
-            ops, vw = m.operators, wp.types.vector(length=W, dtype=self.dtype)
-
-            def across(values, rows):
-                values = operators.across_layout(np.reshape(values, (rows, -1)), W, m.grid.np, pad=True)
-                out = wp.array(values, dtype=vw, device=m.device)  # rounded once, as ``ElementOperators.rounded``
-                return out if rows > 1 else out[0]
-
+            m, across = self.model, self._across
+            ops = m.operators
             D = across(ops.values("D"), 4)
             topography = "forcing" in ops.geometry
             self._geometry = [
                 D,
                 D if self.dtype is wp.float32 else across(ops.values("Dinv"), 4),  # float32 inverts D
-                across(ops.values("metdet"), 1),
+                None,  # metdet: ``geometry``'s, where a launch reads it
                 across(ops.values("fcor"), 1),  # as it is now: a shared ensemble's members set theirs after the build
                 across(ops.values("forcing"), 2) if topography else D[0:2],  # read only with topography, as the rows
                 across(m.spheremp[: m.N].numpy(), 1),
@@ -116,7 +131,7 @@ class TendencyLanes:
         xrow, trow = tendency_lanes.across_views(np_, W, t.dtype, departed)
         inputs = [
             operators.row_vectors(x, xrow),
-            *self.geometry(),
+            *self.geometry(departed),
             m.g,
             operators.row_type(xrow, x.dtype)(t.depth),
             t.dvv_rows,

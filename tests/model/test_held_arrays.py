@@ -3,8 +3,11 @@ geometry, so its float64 geometry stays on the host (``ElementOperators``' ``on_
 diagnostics' vorticity and divergence run on copies for one use, and they give the bits of the
 operators that hold their arrays."""
 
+import gc
+
 import numpy as np
 import pytest
+import warp as wp
 
 from swe_sphere import load_scene
 from swe_sphere.model.element_operators import GEOMETRY, WORK
@@ -61,3 +64,23 @@ def test_set_fcor_reaches_what_the_launches_read(precision):
     assert ("fcor" in vars(ops)) == (precision == "float64")
     if precision == "float64":
         assert np.array_equal(ops.fcor.numpy(), fcor)
+
+
+def test_the_float32_state_lanes_make_no_metdet():
+    """The kept float32 state's tendency lanes take metdet as det D (``tendency_lanes``' determinant)
+    and read none, so after a step its model holds no metdet in the lanes' across layout (4 B a
+    node): asking the lanes for the geometry a float64 state's launch reads (``geometry(False)``)
+    makes it then, one float32 W-vector a node (ne4's 96 elements fill 6 blocks of 16)."""
+    model, stepper, x = built("float32_state", True, compensated=False)
+    stepper.step(x)
+    assert model.lanes.lanes == 16
+
+    def owned() -> int:  # bytes of the live Warp arrays that own their memory
+        gc.collect()
+        return sum(a.capacity for a in gc.get_objects() if type(a) is wp.array and a.ptr and a.deleter is not None)
+
+    before = owned()
+    metdet = model.lanes.geometry(False)[2]
+    assert owned() - before == metdet.capacity == 4 * model.N
+    across, host = np.sort(metdet.numpy().ravel()), np.sort(model.operators.values("metdet"))  # another order
+    assert np.allclose(across, host, rtol=1e-7)

@@ -393,10 +393,13 @@ def shuffled(np_: int, lanes: int, dtype) -> bool:
 @functools.cache
 def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype=f64):
     """``laplacian_across``'s weak Laplacians of a block of W = ``lanes`` elements (src, hs, f, dvv,
-    L, G, Sc, R, b): each field into Sc[0] (X), ``weak_laplacian_across`` (its scratch Sc[1], Sc[2]),
-    back into L's rows; in ``dtype``. Where ``shuffled``, the block's rows go through R (Sc[1]'s
-    memory as rows) and 16 × 16 transposes between it and X, 16 nodes at a time (CH of them an
-    element's np²), else lane by lane."""
+    L, G, Sc, R, Lw, Yw, b): each field into Sc[0] (X), ``weak_laplacian_across`` (its scratch Sc[1],
+    Sc[2]), back into L's rows; in ``dtype``. Where ``shuffled``, by 16 × 16 transposes, 16 nodes
+    at a time (CH of them an element's np²): the first pass's fields formed into R (Sc[1]'s memory
+    as rows) and transposed into X, the second pass's transposed into X from Y₁'s rows as they lie
+    (Yw: src's memory as vectors of 16, the field Y₁ itself), the Laplacians transposed from X
+    straight into L's rows (Lw: L's memory as vectors of 16; a block's rows are W·np² consecutive
+    values of a row of either); else lane by lane."""
     NP, W, S, DIV = int(np_), int(lanes), bool(second), bool(divergent) and not second
     vec, mat = row_derivatives(NP, dtype)[:2]
     RowFrame = frame_type(vec)
@@ -417,6 +420,8 @@ def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype
         G: wp.array2d(dtype=vw),
         Sc: wp.array2d(dtype=vw),
         R: wp.array(dtype=vec),
+        Lw: wp.array2d(dtype=vw),
+        Yw: wp.array2d(dtype=vw),
         b: int,
     ):
         e0 = b * W
@@ -424,8 +429,10 @@ def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype
         first = e0 * NN  # a run-time start for the sweeps' loops
         X = Sc[0]
         for r in range(L.shape[0]):  # one field at a time, in a loop clang does not unroll
-            # the block's rows (consecutive) into R whole, then transposed into X in registers
-            if wp.static(SHUFFLED):
+            if wp.static(SHUFFLED and S):  # Y₁'s rows of the block transposed into X in registers
+                for k in range(CH):
+                    transpose16(Yw, r, bn + k, bn + (W - 1) * CH + k, CH, Sc, 0, 16 * k, 1, 16)
+            elif wp.static(SHUFFLED):  # the block's rows (consecutive) into R whole, then transposed
                 for q in range(e0 * NP, e0 * NP + W * NP):
                     R[q - e0 * NP] = field(src, hs, f, r, q)
                 for k in range(CH):
@@ -440,11 +447,9 @@ def _block_laplacians(second: bool, divergent: bool, np_: int, lanes: int, dtype
                         for i in range(NP):
                             X[j * NP + i][w] = row[i]
             sweeps(X, G, Sc[1], Sc[2], dvv, bn, first)  # X becomes its weak Laplacian: L in the across layout
-            if wp.static(SHUFFLED):  # transposed back into R's rows, then copied into L's
+            if wp.static(SHUFFLED):  # transposed back into L's rows where they lie
                 for k in range(CH):
-                    transpose16(Sc, 0, 16 * k, 16 * k + 15, 1, Sc, 1, k, CH, 16)
-                for q in range(e0 * NP, e0 * NP + W * NP):
-                    L[r, q] = R[q - e0 * NP]
+                    transpose16(Sc, 0, 16 * k, 16 * k + 15, 1, Lw, r, bn + k, CH, 16)
             else:  # back into L's rows, the lane fixed (stores strided by np² cost what the sweeps saved)
                 for w in range(W):
                     base = (e0 + w) * NP
@@ -472,7 +477,9 @@ def laplacian_across(
     each field's values (``field``, formed on rows as there) go into the scratch X, the sweeps
     go through the scratch fx, fy, and L is written back, lane by lane or, where ``shuffled``, by
     16 × 16 transposes (Galewsky ne12 np8's float32 state, one thread, least of 9 × 50
-    calls: first pass 0.660 → 0.542 ms, second 0.676 → 0.553); the second
+    calls: first pass 0.660 → 0.542 ms, second 0.676 → 0.553), straight into L's rows and, in
+    the second pass, from Y₁'s (least of 200 calls in its steps, load 8: first 0.574 → 0.474,
+    second 0.595 → 0.449); the second
     pass's row DSS and both passes' pointwise part are ``laplacian_element``'s, element by
     element. np ≥ 5 only (ValueError otherwise: np 4 keeps its unrolled rows and their bits);
     the elements past the last whole block go through ``laplacian_element``.
@@ -481,7 +488,10 @@ def laplacian_across(
     G (3, N_b) the metric's rows 0..2 in the across layout, G[k, b·np² + n][w] = metric[k,
     (W b + w) np² + n] (``operators.across_layout``); scratch (3, np²) vectors of W (X, fx, fy) and
     R its row 1's memory as W·np rows of np, a thread's private scratch (``parallel.record``'s
-    ``per_part``; ``Hyperviscosity``'s); offset (in blocks). Dim ⌊nelem/W⌋.
+    ``per_part``; ``Hyperviscosity``'s); where ``shuffled``, Lw and Yw L's and (the second pass)
+    Y₁'s memory as (4, N/16) vectors of 16 (``operators.row_vectors``), which the transposes write
+    and read in place (Lw, and in the first pass Yw, any (·, ·) array of vectors of W otherwise:
+    not read); offset (in blocks). Dim ⌊nelem/W⌋.
     HOMME's ``laplace_sphere_wk`` (its quadrature-weighted contravariant metric). ``dtype`` as
     ``laplacian_element``'s (of G, scratch, R too)."""
     NP, W = int(np_), int(lanes)
@@ -519,6 +529,8 @@ def laplacian_across(
             G: wp.array2d(dtype=vw),
             scratch: wp.array2d(dtype=vw),
             R: wp.array(dtype=vec),
+            Lw: wp.array2d(dtype=vw),
+            Yw: wp.array2d(dtype=vw),
             offset: int,
         ):
             b = wp.tid() + offset
@@ -527,7 +539,7 @@ def laplacian_across(
                     y = row_dss(xr, x, d, g, wr, rsr, e, j)
                     for r in range(4):
                         src[r, e * NP + j] = vec(y[r])
-            block(src, hs, f, dvv, L, G, scratch, R, b)
+            block(src, hs, f, dvv, L, G, scratch, R, Lw, Yw, b)
             for e in range(b * W, b * W + W):  # not unrolled
                 pointwise(src, hs, delta, c, f, metric, dvv, L, e)
 
@@ -545,10 +557,12 @@ def laplacian_across(
             G: wp.array2d(dtype=vw),
             scratch: wp.array2d(dtype=vw),
             R: wp.array(dtype=vec),
+            Lw: wp.array2d(dtype=vw),
+            Yw: wp.array2d(dtype=vw),
             offset: int,
         ):
             b = wp.tid() + offset
-            block(src, hs, f, dvv, L, G, scratch, R, b)
+            block(src, hs, f, dvv, L, G, scratch, R, Lw, Yw, b)
             for e in range(b * W, b * W + W):  # not unrolled
                 pointwise(src, hs, delta, c, f, metric, dvv, L, e)
 

@@ -158,6 +158,15 @@ class Hyperviscosity:
         ok = m.operators.per_element and np_ >= 5 and w > 1 and m.N // np_**2 >= w
         return w if ok else 0
 
+    def _in_place(self, out: wp.array2d, src: wp.array2d | None = None) -> list:
+        """``laplacian_across``'s Lw and Yw: its Laplacians ``out`` and the second pass's Y₁ ``src``
+        (4, N) as vectors of 16 where its transposes write and read them in place
+        (``hyperviscosity_element.shuffled``); the scratch, not read, in their stead otherwise."""
+        stand_in = self._per_part["scratch"][0]
+        if not hyperviscosity_element.shuffled(self.model.grid.np, self.lanes, self.dtype):
+            return [stand_in, stand_in]
+        return [operators.row_vectors(a, 16) if a is not None else stand_in for a in (out, src)]
+
     def _across_metric(self, metric: wp.array2d) -> wp.array2d:
         """``metric``'s rows 0..2 in ``laplacian_across``'s layout (``kernels.operators.across_layout``),
         made once for each fixed metric (the constant ∇⁴'s, the tensor's)."""
@@ -204,7 +213,7 @@ class Hyperviscosity:
             if not W:
                 return [m.launches.elements(kernel, rows)]
             blocks = nelem // W
-            inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across]
+            inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across, *self._in_place(L)]
             launches = [
                 m.launches.record(
                     hyperviscosity_element.laplacian_across(False, divergent, np_, W, dtype=dtype),
@@ -231,7 +240,7 @@ class Hyperviscosity:
                 lambda _, copies, ghosts, np_: hyperviscosity_element.laplacian_across(
                     True, divergent, np_, W, copies, ghosts, dtype
                 ),
-                [m.operators.as_rows(Y), *tail, *across],
+                [m.operators.as_rows(Y), *tail, *across, *self._in_place(self.hv_L2, Y)],
                 lanes=W,
                 per_part=self._per_part,
                 rest=(rows, [m.operators.as_rows(Y), *tail]),

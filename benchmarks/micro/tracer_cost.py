@@ -13,22 +13,41 @@ ne30, against this machine's 32 MB L3), so each round began with the other model
 caches, which a user's run never does; a cold start adds about the same time to both steps, so it
 pulled the ratio down.
 
+``--runs DAYS``: whole runs as a user makes them instead, ``swe-sphere run tc5_mountain`` in a
+process of its own, with the K tracers (q = 1) named by ``-s tracers.…`` and without, of DAYS and
+of 2·DAYS days, the rounds taking the four in turn: a step's CPU seconds (the child's user + system
+time, ``resource.RUSAGE_CHILDREN``) as the longer run's less the shorter's over DAYS' steps (the
+start-up, the compiles and the first output cancel; the later outputs stay in, as in a user's run).
+
+``--kernels``: each launch of one RHS (the tendency and its DSS) alone instead, the two models'
+launches taken in turn, each repeated 10 times a round in a row (in the caches as far as its own
+arrays fit): what a tracer's row adds to each kernel's own work, without what the rest of a step
+does to the caches; the CPU µs a call, medians over the rounds.
+
     SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 16 --tracers 1 --rounds 5
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 30 --runs 1
+    SWE_SPHERE_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/micro/tracer_cost.py --ne 30 --kernels --rounds 15
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import json
+import os
+import resource
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: results.py
-from results import positive, quiet_warp, recorded
+from results import DAY, positive, quiet_warp, recorded
 
 from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
 
@@ -66,12 +85,96 @@ def main() -> None:
     )
     parser.add_argument("--every", type=positive(int), default=None, help="the ∇⁴ every k steps (default: the scene's)")
     parser.add_argument("--limiter", default="none", help="the tracers' limiter (a scene's tracers.limiter)")
+    how = parser.add_mutually_exclusive_group()
+    how.add_argument("--runs", type=positive(float), default=None, metavar="DAYS", help="whole runs instead")
+    how.add_argument("--kernels", action="store_true", help="an RHS's launches, each alone, instead")
     args = parser.parse_args()
+    if args.kernels and args.limiter != "none":
+        parser.error("--kernels times an RHS, which holds no limiter: --limiter none")
     quiet_warp()
-    stem = "tracer_cost" + ("" if args.every is None else f"_every{args.every}")
+    stem = "tracer_cost" + ("" if args.runs is None else "_runs") + ("_kernels" if args.kernels else "")
+    stem += "" if args.every is None else f"_every{args.every}"
     stem += "" if args.limiter == "none" else f"_{args.limiter}"
     with recorded(__file__, None if stem == "tracer_cost" else stem) as figures:
-        measure(args, figures)
+        (whole_runs if args.runs is not None else kernels if args.kernels else measure)(args, figures)
+
+
+def kernels(args, figures: dict) -> None:
+    """``--kernels``: each launch of one RHS alone (the module's note), its CPU µs a call without
+    and with the tracers; the sums' ratio into ``figures``."""
+    scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
+    grid, case = CubedSphere(args.ne, 4), scene.make_case()
+    launches = {}
+    for k in (0, args.tracers):
+        model = ShallowWater.from_case(grid, case, scene.terms, tracers=k, threads=1)
+        u, v, h = case.initial(grid.lat, grid.lon)
+        x = model.new_state(u, v, h, masses=np.repeat(h[None], k, axis=0))
+        F = wp.zeros_like(x)
+        model.rhs(x, F)  # records the launches (and compiles)
+        launches[k] = [(a.kernel.key, a) for a in model.launches.recorded(model.rhs_key(x, F)) if hasattr(a, "kernel")]
+    micro = {(k, i): [] for k, row in launches.items() for i in range(len(row))}
+    for _ in range(args.rounds):
+        for k, row in launches.items():  # interleaved: the machine's load falls on both alike
+            for i, (_, launch) in enumerate(row):
+                launch.launch()
+                start = time.process_time()
+                for _ in range(10):
+                    launch.launch()
+                micro[k, i].append((time.process_time() - start) / 10 * 1e6)
+    total = {}
+    for k, row in launches.items():
+        total[k] = sum(statistics.median(micro[k, i]) for i in range(len(row)))
+        for i, (key, _) in enumerate(row):
+            print(f"{k} tracers: {key} {statistics.median(micro[k, i]):.1f} µs CPU a call")
+    figures["rhs_ratio"] = total[args.tracers] / total[0]
+    print(
+        f"tc5 ne{args.ne} np4, an RHS's launches each alone: {total[0]:.1f} µs CPU without tracers, "
+        f"{total[args.tracers]:.1f} µs with {args.tracers}; a tracer {(total[args.tracers] / total[0] - 1) / args.tracers:.3f} "
+        f"x the RHS (medians of {args.rounds} rounds)"
+    )
+
+
+def run_seconds(args, tracers: int, days: float, output: Path) -> float:
+    """The CPU seconds (user + system) of ``swe-sphere run tc5_mountain`` over ``days`` at ne, np 4,
+    one thread, in a child process, with ``tracers`` q = 1 tracers named by ``-s``; its run file
+    ``output`` (replaced)."""
+    options = ["--ne", str(args.ne), "--np", "4", "--days", repr(days), "--device", "cpu", "--no-progress"]
+    options += ["--overwrite", "--output", str(output)]
+    if args.every is not None:
+        options += ["-s", f"hyperviscosity.every={args.every}"]
+    if tracers:  # TOML values: json's lists and strings are TOML's
+        names = [f"q{k}" for k in range(tracers)]
+        for key, value in (("names", names), ("initial", ["constant"] * tracers), ("limiter", args.limiter)):
+            options += ["-s", f"tracers.{key}={json.dumps(value)}"]
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    command = [sys.executable, "-m", "swe_sphere", "run", "tc5_mountain", *options]
+    done = subprocess.run(command, env=env, capture_output=True, text=True)
+    if done.returncode:  # a refused option (a limiter's name): the run's own line, its exit code
+        print(f"tracer_cost.py: {(done.stderr.strip().splitlines() or ['swe-sphere run failed'])[-1]}", file=sys.stderr)
+        sys.exit(done.returncode)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def whole_runs(args, figures: dict) -> None:
+    """``--runs``: ``main``'s line from whole runs (the module's note); the ratio into ``figures``."""
+    scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
+    steps = args.runs * DAY / scene.dt
+    seconds = {k: [] for k in (0, args.tracers)}
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(args.rounds):
+            for k in seconds:  # interleaved: the machine's load falls on both alike
+                short, long = (run_seconds(args, k, d, Path(tmp) / "run.nc") for d in (args.runs, 2 * args.runs))
+                seconds[k].append((long - short) / steps)
+    bare, carried = (statistics.median(seconds[k]) for k in seconds)
+    figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
+    print(
+        f"swe-sphere run tc5_mountain --ne {args.ne}: a step {bare * 1e3:.2f} ms CPU without tracers, "
+        f"{carried * 1e3:.2f} ms with {args.tracers}{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
+        f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
+        f"(medians of {args.rounds} rounds, runs of {args.runs:g} and {2 * args.runs:g} days)"
+    )
 
 
 def measure(args, figures: dict) -> None:

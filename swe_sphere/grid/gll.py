@@ -3,10 +3,16 @@
 Source: Canuto, Hussaini, Quarteroni & Zang (2006), Spectral Methods, §2.3
 (eqs. 2.3.12–2.3.13 for nodes and weights, eq. 2.4.34 for the collocation
 derivative); HOMME's ``quadrature_mod::gausslobatto`` and ``derivative_mod::dvv``.
+Each value is computed in 40-digit decimal arithmetic and rounded once to float64
+(``_DIGITS``): numpy's roots of P_N' are a few ulps off (1.5e-15 at np 8), which put
+dvv's entries up to 2.3e-13 off, so that a row's sum, the derivative of a constant,
+was 2.3e-13 (np 8; 1.3e-15 at np 4) and the continuity's element tendencies integrated to a
+steady 0.015 ε of the mass a step on TC2 ne8 np4 (0 with the rule correctly rounded).
 """
 
 from __future__ import annotations
 
+import decimal
 import math
 from dataclasses import dataclass
 
@@ -43,19 +49,44 @@ def gll(np_: int) -> GLL:
     if not NP_MIN <= np_ <= NP_MAX:
         raise ValueError(f"np must be in {NP_MIN}..{NP_MAX} (got {np_})")
     n = np_ - 1
-    pn = legendre.Legendre.basis(n)
-    interior = np.sort(pn.deriv().roots().real) if n > 1 else np.empty(0)
-    x = np.concatenate(([-1.0], interior, [1.0]))
-    pnx = pn(x)
-    w = 2.0 / (n * (n + 1) * pnx**2)
-    d = np.zeros((np_, np_))
-    for i in range(np_):
-        for j in range(np_):
-            if i != j:
-                d[i, j] = pnx[i] / (pnx[j] * (x[i] - x[j]))
-    d[0, 0] = -n * (n + 1) / 4.0
-    d[n, n] = n * (n + 1) / 4.0
-    return GLL(np_, x, w, d)
+    interior = np.sort(legendre.Legendre.basis(n).deriv().roots().real) if n > 1 else np.empty(0)
+    with decimal.localcontext(prec=_DIGITS):
+        roots = [_root(n, decimal.Decimal(float(r))) for r in interior]
+        roots = [(r - s) / 2 for r, s in zip(roots, reversed(roots))]  # symmetric about 0: a middle point is 0
+        x = [decimal.Decimal(-1), *roots, decimal.Decimal(1)]
+        pnx = [_legendre(n, xi)[0] for xi in x]
+        w = [2 / (n * (n + 1) * p * p) for p in pnx]
+        d = [[pnx[i] / (pnx[j] * (x[i] - x[j])) if i != j else 0 for j in range(np_)] for i in range(np_)]
+    d[0][0], d[n][n] = -n * (n + 1) / 4.0, n * (n + 1) / 4.0
+    as_float = lambda values: np.array(values, dtype=float)  # noqa: E731 (each rounded once)
+    return GLL(np_, as_float(x), as_float(w), as_float(d))
+
+
+_DIGITS = 40  # the decimal digits GLL values are computed with before their one rounding to float64
+
+
+def _legendre(n: int, x):
+    """(P_n(x), P_n'(x), P_n''(x)) at a Decimal x, |x| < 1 for the derivatives (Bonnet's recurrence;
+    (1 − x²) P_n' = n (P_{n−1} − x P_n), and P_n'' from Legendre's equation)."""
+    p0, p1 = 1, x
+    for k in range(1, n):
+        p0, p1 = p1, ((2 * k + 1) * x * p1 - k * p0) / (k + 1)
+    if abs(x) == 1:
+        return p1, None, None
+    dp = n * (p0 - x * p1) / (1 - x * x)
+    return p1, dp, (2 * x * dp - n * (n + 1) * p1) / (1 - x * x)
+
+
+def _root(n: int, x):
+    """The root of P_n' near the Decimal x (numpy's, a few ulps of float64 off), by Newton's
+    iteration to the context's precision."""
+    for _ in range(50):
+        _, dp, ddp = _legendre(n, x)
+        step = dp / ddp
+        x -= step
+        if abs(step) < decimal.Decimal(10) ** (4 - _DIGITS):
+            break
+    return x
 
 
 def truncation(np_: int) -> np.ndarray:

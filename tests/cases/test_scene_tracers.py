@@ -25,9 +25,14 @@ def mass_drift_bound(steps: int, nnodes: int) -> float:
     combinations' float weights no longer carry (``stage_plan.constant_keeping``: fl(1/3) +
     fl(2/3) = 1 − 2⁻⁵⁴ lowered h by 0.21 ε a step), nor the ∇⁴'s RKL1 stages
     (``Hyperviscosity.rkl1``: μ·t + ν·Y_{j−2} raised Galewsky's h, ne8 np8, by 0.19 ε a step).
-    Measured since (native and generic CPU targets alike): TC5's h and q = 1 0.047 ε a step
-    (1.7e-14 over ne8's 1650 RK4 steps; a bias not traced), Galewsky's 0.0004 (2.0e-16 over ne8
-    np8's 2196): ε/8 leaves TC5's 2.7 times room."""
+    Measured since (native and generic CPU targets alike): TC5's h and q = 1 0.038 ε a step
+    (1.38e-14 over ne8's 1650 RK4 steps), Galewsky's 0.0004 (2.0e-16 over ne8 np8's 2196): ε/8
+    leaves TC5's 3.3 times room. TC5's was 0.047 ε a step (1.7e-14) while the GLL rule was a few
+    ulps off (``grid.gll``): its derivative matrix's rows summed to 1.3e-15 at np 4, and the
+    continuity's element tendencies integrated to a steady +0.015 ε of the mass a step (TC2 ne8
+    np4; 0 with the rule correctly rounded, the DSS adding nothing). What is left is in the stage
+    updates (TC2 ne8: 0.03 ± 0.016 ε a step over 100 steps, the tendency's integral 1e-4 ε), not
+    traced."""
     return bound(steps / 8 + 2 * math.ceil(math.log2(nnodes)))
 
 

@@ -20,7 +20,7 @@ and by swe_sphere (``benchmarks/studies/transport/deformational_flow.toml`` at t
 HOMME's SSPRK(3,2) as a ``tableau``; ``ssprk43``: the scene's), and the day-12 l2 of the bells,
 hills and cylinders are printed beside each other and swirl.sh's recorded figures, with each
 run's CPU seconds (HOMME: the whole process, ``os.wait4``; swe_sphere: the run in this process,
-one thread)::
+one thread; ``--no-homme``: swe_sphere's alone, as for the ν sweep of transport.md)::
 
     python benchmarks/peers/peer_homme_swirl.py --homme BUILD/src/sweqx/sweqx \\
         --runs 10/720/4.6e15/8 20/240/2.8e14/8 --keep DIR
@@ -166,7 +166,8 @@ def ours(run: tuple, stepper: str, folder: Path) -> tuple[dict, float | None]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--homme", type=Path, required=True, help="a sweqx built with SWEQX_PLEV >= 4")
+    ap.add_argument("--homme", type=Path, help="a sweqx built with SWEQX_PLEV >= 4 (needed unless --no-homme)")
+    ap.add_argument("--no-homme", action="store_true", help="swe_sphere's runs alone (a ν sweep)")
     ap.add_argument("--runs", nargs="+", default=["10/720/4.6e15/8", "20/240/2.8e14/8"], help="ne/dt/nu/limiter")
     ap.add_argument("--steppers", nargs="+", choices=STEPPERS, default=list(STEPPERS), help="swe_sphere's")
     ap.add_argument("--keep", type=Path, help="a folder for HOMME's run folders and swe_sphere's run files")
@@ -176,18 +177,18 @@ def main() -> None:
         runs = [parse_run(r) for r in args.runs]
     except ValueError as e:
         ap.error(str(e))
-    if not os.access(args.homme, os.X_OK) or not Path(MPIRUN).is_file():
+    if not args.no_homme and (args.homme is None or not os.access(args.homme, os.X_OK) or not Path(MPIRUN).is_file()):
         ap.error(f"--homme {args.homme}: not an executable sweqx, or no {MPIRUN}")
     quiet_warp()
     os.environ.setdefault("SWE_SPHERE_THREADS", "1")
     with recorded(__file__, args.results) as figures, tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        print("run                          model              bells    hills    cylinders   CPU s")
+        print("run                            model              bells    hills    cylinders   CPU s")
         for run in runs:
             ne, dt, nu, limiter = run
             label = f"ne{ne} dt {dt:g} nu {nu:.3g} lim {limiter}"
-            rows = {"HOMME": homme(args.homme, run, folder)}
+            rows = {} if args.no_homme else {"HOMME": homme(args.homme, run, folder)}
             rows |= {f"swe_sphere {s}": ours(run, s, folder) for s in args.steppers}
             recorded_l2 = HOMME_L2[ne] if (RECORDED_AT.get(ne), limiter) == ((dt, nu), 8) else None
             figures[label] = {
@@ -195,9 +196,9 @@ def main() -> None:
             }
             for model, (got, cpu) in rows.items():
                 l2 = "  ".join(f"{got[n]['l2']:.4f}" for n in TRACERS)
-                print(f"{label:28s} {model:18s} {l2}   {'(read)' if cpu is None else f'{cpu:.0f}'}")
+                print(f"{label:30s} {model:18s} {l2}   {'(read)' if cpu is None else f'{cpu:.0f}'}")
             if recorded_l2:
-                print(f"{label:28s} {'swirl.sh recorded':18s} " + "  ".join(f"{recorded_l2[n]:.4f}" for n in TRACERS))
+                print(f"{label:30s} {'swirl.sh recorded':18s} " + "  ".join(f"{recorded_l2[n]:.4f}" for n in TRACERS))
 
 
 if __name__ == "__main__":

@@ -42,7 +42,7 @@ Laplacians run with 16 elements a vector (``laplacian_across``: a thread a block
 the same bits), their DSS and pointwise parts still on rows.
 
 Each layout's kernels are a module of their own: the CPU's ``hyperviscosity_element``
-(``laplacian_element``, ``laplacian_across``) and CUDA's ``hyperviscosity_node`` (``laplacian_flux``,
+(``laplacian_element``) and ``hyperviscosity_across`` (``laplacian_across``) and CUDA's ``hyperviscosity_node`` (``laplacian_flux``,
 ``laplacian_node``); here what they share (``frame_type``, the pointwise parts, ``laplacian_metric``)
 and the second DSS, ``dss_apply``. A kernel's Warp key and content hash (its compiled cache entry)
 name no Python module: they are the same wherever its factory lives.

@@ -363,7 +363,7 @@ def across_as_along(np_: int) -> bool:
 
 
 def across_layout(a, lanes: int, np_: int, pad: bool = False):
-    """The across layout (the element index innermost: ``hyperviscosity_element.laplacian_across``,
+    """The across layout (the element index innermost: ``hyperviscosity_across.laplacian_across``,
     ``tendency_lanes.tendency_across``) of a (rows, N) numpy array of element-local values:
     (rows, nb np², W), [k, b np² + n, w] = a[k, (W b + w) np² + n], over the nb = ⌊nelem/W⌋
     whole blocks of W = ``lanes`` elements, or with ``pad`` the ⌈nelem/W⌉ blocks, the last one's

@@ -1,5 +1,5 @@
 """The shallow-water tendency in vector lanes: ``kernels.tendencies``' arithmetic with W elements
-a vector, the element index innermost (as the ∇⁴'s ``hyperviscosity_element.laplacian_across``),
+a vector, the element index innermost (as the ∇⁴'s ``hyperviscosity_across.laplacian_across``),
 for the CPU's wide registers (``model.lanes`` decides where it runs). Its own module beside
 ``tendencies``, whose ``finish`` and term flags it reads, so that each stays a readable size.
 """
@@ -24,7 +24,7 @@ def across_views(np_: int, lanes: int, dtype, departed: bool) -> tuple[int, int]
 @functools.cache
 def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, dtype=f64, departed: bool = False):
     """The tendency kernel for ``terms`` with W = ``lanes`` elements a vector (the element index
-    innermost, as the ∇⁴'s ``hyperviscosity_element.laplacian_across``): a thread a block of W
+    innermost, as the ∇⁴'s ``hyperviscosity_across.laplacian_across``): a thread a block of W
     consecutive elements e = W·(tid + offset) + w, each node's value a ``wp.types.vector(W)`` of
     theirs, so that at np 4 a float32 vector of 16 fills a 512-bit register, where a GLL row of
     ``tendency_element`` fills a quarter. The state and the tendency stay in the node layout,

@@ -68,7 +68,7 @@ from results import interleaved, positive, recorded, section, studies  # noqa: E
 
 from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.grid.topology import Topology  # noqa: E402
-from swe_sphere.kernels.hyperviscosity_element import weak_laplacian_across  # noqa: E402
+from swe_sphere.kernels.hyperviscosity_across import weak_laplacian_across  # noqa: E402
 from swe_sphere.kernels.operators import CPU_FAST, covariant, dvv_matrix, row_derivatives, times  # noqa: E402
 from swe_sphere.kernels.tendencies import finish, tendency_element  # noqa: E402
 

@@ -269,7 +269,7 @@ class Topology(RankReductions):
         first N and rspheremp as rows (``args`` as the kernel reads them: its arrays of nodes as
         ``kernels.operators.row_vectors``); dim nelem. The neighbours'
         copies are exchanged first. ``lanes`` > 1: the kernel takes that many consecutive
-        elements an index (``kernels.hyperviscosity_element.laplacian_across``; dim ⌊nelem/lanes⌋,
+        elements an index (``kernels.hyperviscosity_across.laplacian_across``; dim ⌊nelem/lanes⌋,
         ``per_part`` as ``core.parallel.record``'s), and ``rest`` = (a builder, its args) as
         ``kernel`` and ``args`` one element an index, launched over the elements past the last
         whole block (with their offset)."""

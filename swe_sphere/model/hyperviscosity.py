@@ -18,7 +18,7 @@ import warp as wp
 
 from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
-from ..kernels import hyperviscosity, hyperviscosity_element, hyperviscosity_node, operators
+from ..kernels import hyperviscosity, hyperviscosity_across, hyperviscosity_element, hyperviscosity_node, operators
 from ..kernels import tracers as tracers_k
 from .launches import Update
 from .precision import rounded
@@ -65,7 +65,7 @@ class Hyperviscosity:
     in float64. The adjoint's transposes are float64's alone.
 
     ``across_elements``: W, the elements a vector of the CPU's weak Laplacians at np ≥ 5
-    (``kernels.hyperviscosity_element.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
+    (``kernels.hyperviscosity_across.laplacian_across``, the bits of the rows'; 0 or 1: a thread an
     element, on rows, as at np ≤ 4), read when a model is built (a benchmark's switch); its
     metric then also held in the across layout (3 rows of N more)."""
 
@@ -161,9 +161,9 @@ class Hyperviscosity:
     def _in_place(self, out: wp.array2d, src: wp.array2d | None = None) -> list:
         """``laplacian_across``'s Lw and Yw: its Laplacians ``out`` and the second pass's Y₁ ``src``
         (4, N) as vectors of 16 where its transposes write and read them in place
-        (``hyperviscosity_element.shuffled``); the scratch, not read, in their stead otherwise."""
+        (``hyperviscosity_across.shuffled``); the scratch, not read, in their stead otherwise."""
         stand_in = self._per_part["scratch"][0]
-        if not hyperviscosity_element.shuffled(self.model.grid.np, self.lanes, self.dtype):
+        if not hyperviscosity_across.shuffled(self.model.grid.np, self.lanes, self.dtype):
             return [stand_in, stand_in]
         return [operators.row_vectors(a, 16) if a is not None else stand_in for a in (out, src)]
 
@@ -216,7 +216,7 @@ class Hyperviscosity:
             inputs = [m.operators.as_rows(x), *args, m.operators.as_rows(L), *across, *self._in_place(L)]
             launches = [
                 m.launches.record(
-                    hyperviscosity_element.laplacian_across(False, divergent, np_, W, dtype=dtype),
+                    hyperviscosity_across.laplacian_across(False, divergent, np_, W, dtype=dtype),
                     blocks,
                     inputs,
                     nodes_per_index=W * np_**2,
@@ -237,7 +237,7 @@ class Hyperviscosity:
                 return m.topology.by_element(L, rows, [m.operators.as_rows(Y), *tail])
             return m.topology.by_element(
                 L,
-                lambda _, copies, ghosts, np_: hyperviscosity_element.laplacian_across(
+                lambda _, copies, ghosts, np_: hyperviscosity_across.laplacian_across(
                     True, divergent, np_, W, copies, ghosts, dtype
                 ),
                 [m.operators.as_rows(Y), *tail, *across, *self._in_place(self.hv_L2, Y)],

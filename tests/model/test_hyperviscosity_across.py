@@ -1,4 +1,4 @@
-"""The ∇⁴'s weak Laplacians with several elements a vector (``kernels.hyperviscosity_element.laplacian_across``,
+"""The ∇⁴'s weak Laplacians with several elements a vector (``kernels.hyperviscosity_across.laplacian_across``,
 the CPU's form at np ≥ 5) give the rows' bits (``laplacian_element``, one element a thread): the
 operator and a few applications, forward Euler and RKL1, on cubes whose element count is not a
 multiple of the lanes (the rest on rows), split over two threads, and on an icosahedral mesh;
@@ -14,7 +14,7 @@ import warp as wp
 
 from swe_sphere.cases.library import make_case
 from swe_sphere.grid.cubed_sphere import CubedSphere
-from swe_sphere.kernels import hyperviscosity_element as hv_kernels
+from swe_sphere.kernels import hyperviscosity_across as hv_kernels
 from swe_sphere.kernels import operators
 from swe_sphere.model.hyperviscosity import Hyperviscosity
 from swe_sphere.model.shallow_water import ShallowWater
@@ -84,7 +84,7 @@ def test_across_gives_the_rows_bits(name, divergent):
 def test_across_gives_the_rows_bits_in_float32(divergent, np_, threads):
     """A float32 ∇⁴ (``ShallowWater``'s precision; 16 float32 elements a vector, one AVX-512
     register) across elements has its rows' bits too: cube ne3 np6 (lane by lane), and ne4 np8
-    (``hyperviscosity_element.shuffled``: 16 × 16 transposes) on one and two threads."""
+    (``hyperviscosity_across.shuffled``: 16 × 16 transposes) on one and two threads."""
     g = cached_grid(3 if np_ == 6 else 4, np_)
     across, rows = model(g, 16, threads, divergent, "float32"), model(g, 0, threads, divergent, "float32")
     assert across.hv.lanes == 16 and rows.hv.lanes == 0 and across.hv.hv_L.dtype == wp.float32

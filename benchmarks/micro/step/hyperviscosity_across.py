@@ -1,4 +1,4 @@
-"""The ∇⁴'s weak Laplacians with W elements a vector (``kernels.hyperviscosity_element.laplacian_across``,
+"""The ∇⁴'s weak Laplacians with W elements a vector (``kernels.hyperviscosity_across.laplacian_across``,
 the CPU's form at np ≥ 5 since issue 99) against one element a thread on GLL rows
 (``laplacian_element``, ``Hyperviscosity.across_elements = 0``): a step's CPU cost, both in one
 process, interleaved.

@@ -280,10 +280,10 @@ part_card() {
     local OUT=$OUT/card  # run() and the parts write here
     mkdir -p "$OUT"
     local p="$PY benchmarks/gpu/gpu_session.py precision --device $DEVICE"
-    for item in ${CARD:-tc5_ne120 galewsky small members mpi exchange}; do
+    for item in ${CARD:-tc5_ne120 state galewsky small members mpi exchange}; do
         case $item in  # the item's time box, its command's grids and steps (NE_SMALL: tiny, on a CPU)
-            tc5_ne120) limit=180 ;; galewsky|small) limit=60 ;; members) limit=90 ;; mpi) limit=150 ;; exchange) limit=120 ;;
-            *) echo "== card: unknown item '$item' (tc5_ne120 galewsky small members mpi exchange)" | tee -a "$OUT/session.log"
+            tc5_ne120) limit=180 ;; state|galewsky|small) limit=60 ;; members) limit=90 ;; mpi) limit=150 ;; exchange) limit=120 ;;
+            *) echo "== card: unknown item '$item' (tc5_ne120 state galewsky small members mpi exchange)" | tee -a "$OUT/session.log"
                failed="$failed card"; continue ;;
         esac
         left=$((deadline - SECONDS))
@@ -297,6 +297,8 @@ part_card() {
         case $item in
             tc5_ne120) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2; else set -- --ne 120 --warmup 100 --graph-steps 1000 --runs 5; fi
                 run "precision_$item" "$limit" $p --scene tc5_mountain $r --chain --target-days 80000 "$@" ;;
+            state) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2; else set -- --ne 120 --warmup 100 --graph-steps 1000 --runs 3; fi
+                run "precision_$item" "$limit" $p --scene tc5_mountain $r --precisions float64 float32_state "$@" ;;  # issue 128: the kept float32 state
             galewsky) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2 --chain 2; else set -- --graph-steps 2000 --runs 5 --chain 50; fi
                 run "precision_$item" "$limit" $p --scene galewsky $r --target-ms 0.05 "$@" ;;
             small) if [ "$small" = 1 ]; then set -- --ne 2 --warmup 3 --graph-steps 2 --runs 2 --chain 2; else set -- --ne 30 8 --graph-steps 2000 --runs 5 --chain 50; fi

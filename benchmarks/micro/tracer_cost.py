@@ -5,6 +5,11 @@ step: ``--every 1``): the CPU seconds (``time.process_time``, one thread: the cl
 machine can still compare) of a step with K tracers and without, in rounds that take the two in
 turn, the median of each taken. Prints the ratio (step with K − step without) / (K · step
 without); ``--limiter optimization``: the tracers limited (their limiter's cost counted with theirs).
+A line before it gives the spread over the rounds: each step's quartiles, and the quartiles of each
+round's own ratio (its step with K tracers against its step without). Each round's models are new
+allocations, and a round's own ratio scatters widely (ne30, idle, one thread, rounds of 64 steps:
+0.22–0.55 on 2026-11-30, with the medians 0.39–0.44): take 11 rounds or more and read the median
+beside its quartiles.
 
 Each round builds its model, takes one ∇⁴ cycle untimed, times ``--steps`` steps and lets the model
 go, so that the process holds one model at a time, warm, as a user's run does. Until 2026-11-30 the
@@ -50,6 +55,30 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: res
 from results import DAY, positive, quiet_warp, recorded
 
 from swe_sphere import CubedSphere, ShallowWater, load_scene, make_stepper
+
+
+def quartiles(values: list) -> list[float]:
+    """[first quartile, median, third quartile] of ``values`` (one value: itself three times)."""
+    if len(values) < 2:
+        return [float(values[0])] * 3
+    q1, q2, q3 = statistics.quantiles(values, n=4, method="inclusive")
+    return [q1, q2, q3]
+
+
+def spread(seconds: dict, tracers: int, figures: dict) -> None:
+    """Print and put in ``figures`` the quartiles over the rounds of the step's CPU ms without
+    and with ``tracers`` (``seconds``: {0: [...], tracers: [...]}, a step's seconds a round) and
+    of each round's own ratio (its step with the tracers less its step without, over
+    ``tracers`` times the latter)."""
+    ms = {k: quartiles([t * 1e3 for t in v]) for k, v in seconds.items()}
+    ratio = quartiles([(c - b) / (tracers * b) for b, c in zip(seconds[0], seconds[tracers])])
+    figures["step_ms_quartiles"] = {str(k): v for k, v in ms.items()}
+    figures["tracer_over_step_by_round_quartiles"] = ratio
+    print(
+        f"quartiles over the rounds: a step {ms[0][0]:.2f}–{ms[0][2]:.2f} ms without tracers, "
+        f"{ms[tracers][0]:.2f}–{ms[tracers][2]:.2f} with {tracers}; a round's own ratio "
+        f"{ratio[0]:.3f} / {ratio[1]:.3f} / {ratio[2]:.3f} (first quartile / median / third)"
+    )
 
 
 def stepping(scene, grid, tracers: int, every: int | None, limiter: str = "none"):
@@ -169,6 +198,7 @@ def whole_runs(args, figures: dict) -> None:
                 seconds[k].append((long - short) / steps)
     bare, carried = (statistics.median(seconds[k]) for k in seconds)
     figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
+    spread(seconds, args.tracers, figures)
     print(
         f"swe-sphere run tc5_mountain --ne {args.ne}: a step {bare * 1e3:.2f} ms CPU without tracers, "
         f"{carried * 1e3:.2f} ms with {args.tracers}{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
@@ -191,6 +221,7 @@ def measure(args, figures: dict) -> None:
     bare, carried = (statistics.median(seconds[k]) for k in seconds)
     every = scene.hypervis_every if args.every is None else args.every
     figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
+    spread(seconds, args.tracers, figures)
     print(
         f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: a step "
         f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}"

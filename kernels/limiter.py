@@ -149,7 +149,9 @@ def limited(np_: int):
 
 
 @functools.cache
-def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False, weigh: bool = False):
+def limit_stage(
+    weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False, weigh: bool = False, relative: bool = False
+):
     """The kernel limiting an explicit stage's element-local values before their DSS (HOMME's
     ``euler_step``: the limiter on Qtens, then the DSS): the stage's update out = a₀·s₀ + a₁·s₁ +
     a₂·F (``ShallowWater.rhs_update``), F = M⁻¹DSS(the tendency), taken element by element as
@@ -170,8 +172,12 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False,
     ∇⁴'s, ``first`` = 2). ``weigh``: out[k] = spheremp·h·q̃, the mass-weighted DSS's own terms
     (the same products), for an unweighted DSS pass to assemble with other rows (the stage's
     dynamics rows: ``dss.dss_update``'s ``assembled``); out may then be tend's own tracer rows
-    (each element reads its own before it writes them)."""
-    W, F, NP, RKL, WEIGH = bool(weighted), int(first), int(np_), bool(rkl), bool(weigh)
+    (each element reads its own before it writes them). ``relative``: out[k] = h·q̃ − a₀·s₀, for a
+    weighted DSS update that adds a₀·s₀ back (``dss.dss_update``'s "ak"). An element within its
+    bounds keeps its values; one outside them is limited in q − qmin (``limited`` with bounds 0,
+    qmax − qmin) and takes the change alone, h·(q̃ − q), so that only what the limiter moves is
+    rounded."""
+    W, F, NP, RKL, WEIGH, REL = bool(weighted), int(first), int(np_), bool(rkl), bool(weigh), bool(relative)
     vec, mat = row_derivatives(NP)[:2]
     limit = limited(NP)
 
@@ -212,22 +218,31 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False,
             R[j] = r
         for k in range(out.shape[0]):  # a tracer at a time, in a loop clang does not unroll
             Q = mat()
+            V = mat()  # the stage's values h·q
             qmin, qmax = bounds[2 * k, e], bounds[2 * k + 1, e]
             outside = False
             for j in range(NP):
                 q = base + j
-                v = combined(a, s0[3 + k, q], s1[3 + k, q], wp.cw_mul(tend[wp.static(3 - F) + k, q], R[j]))
-                Q[j] = wp.cw_div(v, H[j])
+                V[j] = combined(a, s0[3 + k, q], s1[3 + k, q], wp.cw_mul(tend[wp.static(3 - F) + k, q], R[j]))
+                Q[j] = wp.cw_div(V[j], H[j])
                 outside = outside or wp.min(Q[j]) < qmin or wp.max(Q[j]) > qmax
-            # an element within its bounds (most) is what ``limited`` would return: its first pass clips
-            # nothing; its scalar passes skipped (TC5 ne16 q = 1, one thread: limit_stage 0.13 → 0.09 ms)
+            # an element within its bounds (most) keeps its values; its scalar passes skipped (TC5 ne16
+            # q = 1, one thread: limit_stage 0.13 → 0.09 ms)
             if outside:
-                Q = limit(Q, C, qmin, qmax, iterations)
+                # q − qmin limited: near a bound q = 1 (q = 1's own) a spread of a few ε is kept where
+                # one onto q ≥ 1 (spacing 2ε, ε below 1) rounded away, a mass bias (−0.05 ε an element)
+                for j in range(NP):
+                    Q[j] = Q[j] - vec(qmin)
+                D = limit(Q, C, f64(0.0), qmax - qmin, iterations)
+                for j in range(NP):  # the limiter's change alone: untouched nodes keep their values' bits
+                    V[j] = V[j] + wp.cw_mul(D[j] - Q[j], H[j])
             for j in range(NP):
                 if wp.static(WEIGH):
-                    out[k, base + j] = wp.cw_mul(spheremp[base + j], wp.cw_mul(Q[j], H[j]))
+                    out[k, base + j] = wp.cw_mul(spheremp[base + j], V[j])
+                elif wp.static(REL):
+                    out[k, base + j] = V[j] - a[0] * s0[3 + k, base + j]
                 else:
-                    out[k, base + j] = wp.cw_mul(Q[j], H[j])
+                    out[k, base + j] = V[j]
 
     kernel.__qualname__ = kernel.__name__ = (
         "limit_stage"
@@ -235,5 +250,6 @@ def limit_stage(weighted: bool, first: int = 0, np_: int = 4, rkl: bool = False,
         + (f"__from{F}" if F else "")
         + ("__rkl" if RKL else "")
         + ("__weighed" if WEIGH else "")
+        + ("__relative" if REL else "")
     )
     return wp.kernel(kernel, enable_backward=False, module="unique")

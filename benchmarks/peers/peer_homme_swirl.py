@@ -20,7 +20,9 @@ and by swe_sphere (``benchmarks/studies/transport/deformational_flow.toml`` at t
 HOMME's SSPRK(3,2) as a ``tableau``; ``ssprk43``: the scene's), and the day-12 l2 of the bells,
 hills and cylinders are printed beside each other and swirl.sh's recorded figures, with each
 run's CPU seconds (HOMME: the whole process, ``os.wait4``; swe_sphere: the run in this process,
-one thread; ``--no-homme``: swe_sphere's alone, as for the ν sweep of transport.md)::
+one thread; ``--no-homme``: swe_sphere's alone, as for the ν sweep of transport.md), with the
+tracers' ν_s ∇⁴ split after each step (``--hyperviscosity step``, the scene's) and/or inside every
+stage as HOMME applies it (``stages``: ``tracers.stage_hyperviscosity``)::
 
     python benchmarks/peers/peer_homme_swirl.py --homme BUILD/src/sweqx/sweqx \\
         --runs 10/720/4.6e15/8 20/240/2.8e14/8 --keep DIR
@@ -143,11 +145,14 @@ def homme(sweqx: Path, run: tuple, folder: Path) -> tuple[dict, float | None]:
     return homme_norms(printed), cpu
 
 
-def ours(run: tuple, stepper: str, folder: Path) -> tuple[dict, float | None]:
-    """swe_sphere's day-12 scores of ``run`` under ``stepper`` and the run's CPU seconds (None: an
-    earlier run file read again)."""
+def ours(run: tuple, stepper: str, where: str, folder: Path) -> tuple[dict, float | None]:
+    """swe_sphere's day-12 scores of ``run`` under ``stepper``, its ∇⁴ ``where`` ("step": split
+    after each step; "stages": in every stage), and the run's CPU seconds (None: an earlier run
+    file read again)."""
     ne, dt, nu, limiter = run
     over = {"output.every_days": 6.0, "tracers.limiter": LIMITERS[limiter]}
+    if where == "stages":
+        over["tracers.stage_hyperviscosity"] = True
     if nu:  # the scene's ν_s is ne10's, scaled as Δx^3.2: given so that ne's is nu
         over["hyperviscosity.nu_s"] = nu * (ne / 10) ** 3.2
     else:
@@ -155,7 +160,8 @@ def ours(run: tuple, stepper: str, folder: Path) -> tuple[dict, float | None]:
     if stepper == "ssprk32":
         over["tableau"] = SSPRK32
     scene = load_scene(SCENE, ne=ne, dt=dt, stepper="tableau" if stepper == "ssprk32" else stepper, overrides=over)
-    path = folder / f"swe_ne{ne}_dt{dt:g}_nu{nu:g}_lim{limiter}_{stepper}.nc"
+    suffix = "_stages" if where == "stages" else ""
+    path = folder / f"swe_ne{ne}_dt{dt:g}_nu{nu:g}_lim{limiter}_{stepper}{suffix}.nc"
     cpu = None
     if not path.exists():  # a run file is renamed into place only when complete
         start = time.process_time()
@@ -170,6 +176,13 @@ def main() -> None:
     ap.add_argument("--no-homme", action="store_true", help="swe_sphere's runs alone (a ν sweep)")
     ap.add_argument("--runs", nargs="+", default=["10/720/4.6e15/8", "20/240/2.8e14/8"], help="ne/dt/nu/limiter")
     ap.add_argument("--steppers", nargs="+", choices=STEPPERS, default=list(STEPPERS), help="swe_sphere's")
+    ap.add_argument(
+        "--hyperviscosity",
+        nargs="+",
+        choices=("step", "stages"),
+        default=["step"],
+        help="swe_sphere's tracer ∇⁴: split after each step (the scene's) or in every stage (HOMME's)",
+    )
     ap.add_argument("--keep", type=Path, help="a folder for HOMME's run folders and swe_sphere's run files")
     ap.add_argument("--results", metavar="STEM", help="results/peer_homme_swirl/STEM.json")
     args = ap.parse_args()
@@ -184,21 +197,25 @@ def main() -> None:
     with recorded(__file__, args.results) as figures, tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        print("run                            model              bells    hills    cylinders   CPU s")
+        print("run                            model                     bells    hills    cylinders   CPU s")
         for run in runs:
             ne, dt, nu, limiter = run
             label = f"ne{ne} dt {dt:g} nu {nu:.3g} lim {limiter}"
             rows = {} if args.no_homme else {"HOMME": homme(args.homme, run, folder)}
-            rows |= {f"swe_sphere {s}": ours(run, s, folder) for s in args.steppers}
+            rows |= {
+                f"swe_sphere {s}" + (" stages" if w == "stages" else ""): ours(run, s, w, folder)
+                for w in args.hyperviscosity
+                for s in args.steppers
+            }
             recorded_l2 = HOMME_L2[ne] if (RECORDED_AT.get(ne), limiter) == ((dt, nu), 8) else None
             figures[label] = {
                 model: {"l2": {n: got[n]["l2"] for n in TRACERS}, "cpu_s": cpu} for model, (got, cpu) in rows.items()
             }
             for model, (got, cpu) in rows.items():
                 l2 = "  ".join(f"{got[n]['l2']:.4f}" for n in TRACERS)
-                print(f"{label:30s} {model:18s} {l2}   {'(read)' if cpu is None else f'{cpu:.0f}'}")
+                print(f"{label:30s} {model:25s} {l2}   {'(read)' if cpu is None else f'{cpu:.0f}'}")
             if recorded_l2:
-                print(f"{label:30s} {'swirl.sh recorded':18s} " + "  ".join(f"{recorded_l2[n]:.4f}" for n in TRACERS))
+                print(f"{label:30s} {'swirl.sh recorded':25s} " + "  ".join(f"{recorded_l2[n]:.4f}" for n in TRACERS))
 
 
 if __name__ == "__main__":

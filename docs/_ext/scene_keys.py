@@ -158,6 +158,12 @@ KEYS = {
         "true",
         "the depth's ∇⁴ on the tracers, ν_s ∇⁴ of q(h + hs) (keeps q = 1 at 1); false: none on them",
     ),
+    "tracers.stage_hyperviscosity": (
+        "false",
+        "true: that ν_s ∇⁴ (and the depth's) inside every stage's right-hand side, from the stage's state and "
+        "limited with its transport (HOMME's advance_nonstag_rk; the stepper's stability interval must hold "
+        "ν_s Δt λ); false: split after each step (substeps or RKL1). Needs the hyperviscosity term",
+    ),
     "tracers.initial": (
         "none",
         "each tracer's initial field, by name: constant, latitude, cosine_bells, gaussian_hills, slotted_cylinders, "

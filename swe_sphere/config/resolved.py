@@ -120,6 +120,10 @@ class Scene:
     tracer_hyperviscosity : bool
         [tracers] hyperviscosity: the tracers take the depth's ∇⁴ (ν_s ∇⁴ of q(h + hs); True, the
         default) or none (then q = 1 is no longer kept at 1 where the depth is damped).
+    tracer_stage_hyperviscosity : bool
+        [tracers] stage_hyperviscosity: the depth's and the tracers' ν_s ∇⁴ inside every stage's
+        right-hand side, limited with the stage (True: HOMME's ``advance_nonstag_rk``;
+        ``ShallowWater``'s ``stage_hyperviscosity``), or split after each step (False, the default).
     dt_source : str
         Where ``dt`` comes from, for messages ("the scene's", "the dt given", ...): not part
         of the scene's identity (left out of comparisons and of ``as_dict``).
@@ -179,6 +183,7 @@ class Scene:
     tracer_file: str | None = None  # [tracers] file: the netCDF file of the fields not bundled (absolute)
     tracer_limiter: str = "none"  # [tracers] limiter: "none" or "optimization" (Guba et al. 2014)
     tracer_hyperviscosity: bool = True  # [tracers] hyperviscosity: the depth's ∇⁴ on the tracers
+    tracer_stage_hyperviscosity: bool = False  # [tracers] stage_hyperviscosity: ν_s ∇⁴ in every stage
 
     def __post_init__(self):
         # a cube's record follows ne (``dataclasses.replace(scene, ne=...)``), as its JSON does
@@ -323,6 +328,8 @@ class Scene:
             del d["tracer_limiter"]
         if d["tracer_hyperviscosity"]:  # the default, likewise
             del d["tracer_hyperviscosity"]
+        if not d["tracer_stage_hyperviscosity"]:  # the default, likewise
+            del d["tracer_stage_hyperviscosity"]
         return d
 
 

@@ -68,7 +68,10 @@ the run length, the output interval and the hyperviscosity. Layout::
                       entries name: ``io.initial_state.read_tracer_file``),
                       limiter = "none" | "optimization" (Guba et al. 2014's, HOMME's limiter 8),
                       hyperviscosity = true | false (the depth's ∇⁴ on the tracers, ν_s ∇⁴ of
-                      q(h + hs): true keeps q = 1 at 1; false leaves them undamped)
+                      q(h + hs): true keeps q = 1 at 1; false leaves them undamped),
+                      stage_hyperviscosity = false | true (that ν_s ∇⁴, the depth's too,
+                      inside every stage's right-hand side and its limiter: HOMME's
+                      advance_nonstag_rk; false: split after each step)
     [numerics]        precision = "float64" | "float32" (the RHS tendency computed in
                       float32, the state and its accumulation float64; ``Scene.precision``):
                       refused with a stepper that differences the RHS
@@ -129,7 +132,13 @@ from .resolved import Scene, run_end, scene_from_dict, with_days
 from .schema import SCHEMA, SceneGrid, SceneHyperviscosity, SceneOutput, SceneTime, is_number, read_scene
 from .state_scene import TEMPLATE, is_state_file, start_overrides
 from .step_rule import DT_NOTES, Times, scene_dt
-from .tracers import resolve_limiter, resolve_tracer_file, resolve_tracer_hyperviscosity, resolve_tracers
+from .tracers import (
+    resolve_limiter,
+    resolve_stage_hyperviscosity,
+    resolve_tracer_file,
+    resolve_tracer_hyperviscosity,
+    resolve_tracers,
+)
 
 # the names the package, its tests and benchmarks import from here, defined in the config's other modules
 __all__ = [
@@ -339,6 +348,7 @@ def _resolve(path: Path, given: dict, mesh, overrides: dict, restart_every=None)
         tracer_file=resolve_tracer_file(s.get("tracers", {}), path),
         tracer_limiter=resolve_limiter(s.get("tracers", {})),
         tracer_hyperviscosity=resolve_tracer_hyperviscosity(s.get("tracers", {}), t.terms),
+        tracer_stage_hyperviscosity=resolve_stage_hyperviscosity(s.get("tracers", {}), t.terms),
     )
     if t.case.case.notes():  # what the case read, said as the run's grid has it read (a reanalysis: its truncation)
         scene = dataclasses.replace(scene, notes=(*scene.make_case().notes(), *scene.notes))

@@ -153,8 +153,16 @@ SCHEMA = {
     # the tendency's (and "float32_state": the state's) float type; the float32 state's increments
     # compensated, its mass fixed (``resolve.resolve_precision``)
     "numerics": {"precision": str, "compensated": bool, "mass_fixer": bool},
-    # passive tracers: names, their initial fields (bundled, or a file's variables), the limiter (``resolve_tracers``, ``resolve_limiter``)
-    "tracers": {"names": list, "initial": list, "limiter": str, "hyperviscosity": bool, "file": str},
+    # passive tracers: names, their initial fields (bundled, or a file's variables), the limiter, the ∇⁴ and where
+    # it acts (``resolve_tracers``, ``resolve_limiter``, ``resolve_tracer_hyperviscosity``, ``resolve_stage_hyperviscosity``)
+    "tracers": {
+        "names": list,
+        "initial": list,
+        "limiter": str,
+        "hyperviscosity": bool,
+        "stage_hyperviscosity": bool,
+        "file": str,
+    },
     # one table per stepper, named after it, with the stepper's own options
     **{name: option_types(cls.Options) for name, cls in STEPPERS.items() if option_types(cls.Options)},
 }

@@ -1,5 +1,5 @@
 """The [tracers] table's resolvers for ``load_scene``: the tracers' names and initial fields, their
-file, their ∇⁴ and their limiter, a function each (the first refusal wins).
+file, their ∇⁴, where it acts and their limiter, a function each (the first refusal wins).
 
 Every problem raises ``SceneError`` (a ValueError) with a one-line message naming the key.
 """
@@ -87,6 +87,19 @@ def resolve_tracer_hyperviscosity(table: dict, terms: tuple) -> bool:
     if "hyperviscosity" in table and value and "hyperviscosity" not in terms:
         raise SceneError("tracers.hyperviscosity = true needs the hyperviscosity term")
     return bool(value)
+
+
+def resolve_stage_hyperviscosity(table: dict, terms: tuple) -> bool:
+    """``Scene.tracer_stage_hyperviscosity`` of the [tracers] table: its ``stage_hyperviscosity``
+    (default false: the ν_s ∇⁴ split after each step; true: inside every stage, HOMME's
+    ``advance_nonstag_rk``). Raises ``SceneError`` for true where the scene has no hyperviscosity
+    term or ``hyperviscosity`` is false (no ∇⁴ on the tracers to move)."""
+    value = bool(table.get("stage_hyperviscosity", False))
+    if value and ("hyperviscosity" not in terms or not table.get("hyperviscosity", True)):
+        raise SceneError(
+            "tracers.stage_hyperviscosity = true needs the hyperviscosity term and tracers.hyperviscosity = true"
+        )
+    return value
 
 
 def resolve_limiter(table: dict) -> str:

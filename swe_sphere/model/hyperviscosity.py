@@ -106,10 +106,10 @@ class Hyperviscosity:
         self._plan: tuple[float, tuple[int, bool]] | None = None  # (dt, its plan): the last dt's only
         self._biharmonic_radius = None
         self._rkl_buffers: dict = {}  # RKL1's Y_{j−1} or Y_{j−2} beside x, by x's shape (``rkl1``)
-        # the tracers' ∇⁴ (``build_tracers``): the state's rows it acts on from ``_tracer_row`` (with the
-        # limiter h's too, its element-local values the limiter's weights), its work arrays the first
-        # weak Laplacian, its DSS Y₁, the second
-        self._tracer_row = 2 if m.limiter is not None else 3
+        # the tracers' ∇⁴ (``build_tracers``, ``build_stage``): the state's rows it acts on from
+        # ``_tracer_row`` (with the limiter h's too, its element-local values the limiter's weights; in
+        # the stages h's too, its ∇⁴ there), its work arrays the first weak Laplacian, its DSS Y₁, the second
+        self._tracer_row = 2 if m.limiter is not None or m.stage_hyperviscosity else 3
         rows = m.rows - self._tracer_row
         self._tracer_work = (
             tuple(wp.zeros((rows, N), dtype=f64, device=device) for _ in range(3)) if m.tracers else None
@@ -118,7 +118,7 @@ class Hyperviscosity:
     def build(self, x, coef, out=None, nus=None, transposed=False, mode="add", prev=None, weight=0.0, depth=None):
         """Launches of out += coef·B x, B = ν∇⁴ the hyperviscosity operator
         (``kernels.hyperviscosity``) with coefficients ``nus`` = (ν, ν_div, ν_s)
-        (None: the model's); out = x if None. ``mode`` "euler": out = x + coef·B x instead;
+        (None: the split ∇⁴'s, ``split_nus``); out = x if None. ``mode`` "euler": out = x + coef·B x instead;
         "rkl": out = t + ν·(prev − t), t = x + coef·B x, ν = ``weight``, an RKL1 stage (``rkl1``; out may alias x
         or prev), each in the last pass (``kernels.hyperviscosity.dss_apply``). Three passes on the per-element
         layout (the second weak Laplacian sums the first DSS itself), six on the
@@ -133,7 +133,7 @@ class Hyperviscosity:
         operator on other than a state, ``biharmonic_radius``'); unread in float64."""
         m = self.model
         out = x if out is None else out
-        nu, nu_div, nu_s = (m.nu, m.nu_div, m.nu_s) if nus is None else nus
+        nu, nu_div, nu_s = self.split_nus if nus is None else nus
         shift = 2.0 / m.grid.radius**2  # HOMME: "so we dont damp rigid rotation"
         c = wp.types.vector(length=4, dtype=self.dtype)(nu, nu_div - nu, nu_s, shift)
         if depth is None:  # a float32 state kept between steps holds h − H₀ already (``model.held``)
@@ -450,8 +450,8 @@ class Hyperviscosity:
 
     @property
     def nu_max(self) -> float:
-        """The largest of ν, ν_div, ν_s (m⁴ s⁻¹): what limits explicit steps."""
-        return max(self.model.nu, self.model.nu_div, self.model.nu_s)
+        """The largest of ν, ν_div, ν_s (m⁴ s⁻¹) of the split ∇⁴ (``split_nus``): what limits its steps."""
+        return max(self.split_nus)
 
     def substeps(self, dt: float) -> int:
         """Forward-Euler substeps for ``apply`` over dt (``forward_euler_substeps``)."""
@@ -482,27 +482,54 @@ class Hyperviscosity:
         stays 1; h itself is left to the depth's ∇⁴). out may alias src and
         prev. The launches (and the DSSs' exchanges) serve every tracer at once."""
         m = self.model
-        ops, (L1, Y1, L2) = m.operators, self._tracer_work
-        second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
-        dvv, rows, np_ = m.tendency_arrays.dvv_rows, ops.as_rows, m.grid.np
+        L2 = self._tracer_work[2]
         if mode == "rkl":  # the terms of t + c₁·(prev − t), t = 1·src + c₀·Y₂ (``dss.rkl_stage``)
             terms = ((1.0, src), (c[1], prev), (c[0], None))
         else:
             terms = ((1.0, out if mode == "add" else src), (c[0], None))
-        launches = [
-            m.launches.elements(
-                tracers_k.tracer_laplacian(True, np_, self._tracer_row),
-                [rows(src), rows(ops.hs), rows(self.hv_metric), dvv, m.nu_s, rows(L1)],
-            ),
-            *m.topology.dss(L1, False, Y1),
-            m.launches.elements(
-                tracers_k.tracer_laplacian(False, np_), [rows(Y1), rows(ops.hs), rows(second), dvv, 1.0, rows(L2)]
-            ),
-        ]
+        launches = self._tracer_laplacians(src, L2, "")
         if m.limiter is not None:  # HOMME limits the tracers' biharmonic with their transport (euler_step)
             return [*launches, *m.limiter.stage(Update(out, terms), L2, True, first=2, rkl=mode == "rkl")]
         sliced = tuple((a, None if a_src is None else a_src[3:]) for a, a_src in terms)
         return [*launches, *m.topology.dss_update(L2, [(out[3:], sliced)], weighted=False, rkl=mode == "rkl")]
+
+    def _tracer_laplacians(self, src, out, into: str) -> list:
+        """The launches of L₂, the weak Laplacian (the tensor's where the ∇⁴ has one) of Y₁ =
+        M⁻¹DSS(L₁), L₁ = ν_s·the weak Laplacian of hq + q·hs (from ``_tracer_row``: with h's, h + hs)
+        from ``src`` (``kernels.tracers.tracer_laplacian``; HOMME ``biharmonic_wk_scalar``), into
+        ``out`` as ``into`` says (``kernels.tracers.INTO``: written, or subtracted from a tendency)."""
+        m = self.model
+        ops, (L1, Y1, _) = m.operators, self._tracer_work
+        second = self.hv_tensor if self.hv_tensor is not None else self.hv_metric
+        dvv, rows, np_, mass = m.tendency_arrays.dvv_rows, ops.as_rows, m.grid.np, m.tendency_arrays.mass
+        return [
+            m.launches.elements(
+                tracers_k.tracer_laplacian(True, np_, self._tracer_row),
+                [rows(src), rows(ops.hs), rows(self.hv_metric), dvv, m.nu_s, rows(L1), rows(mass)],
+            ),
+            *m.topology.dss(L1, False, Y1),
+            m.launches.elements(
+                tracers_k.tracer_laplacian(False, np_, into=into),
+                [rows(Y1), rows(ops.hs), rows(second), dvv, 1.0, rows(out), rows(mass)],
+            ),
+        ]
+
+    def build_stage(self, x, tend, weighted: bool) -> list:
+        """Launches of the depth's and the tracers' ν_s ∇⁴ inside a stage's right-hand side (the
+        model's ``stage_hyperviscosity``; HOMME's ``advance_nonstag_rk``, its ``biharmonic_wk`` of q
+        in every stage): −ν_s ∇⁴ of h + hs and of each q(h + hs) from the stage's state ``x``,
+        subtracted from the element-local tendency ``tend``'s rows 2.. (spheremp-weighted where
+        ``weighted``, else pointwise) before its DSS, so that the stage's limiter limits it with the
+        transport (HOMME limits Qtens so made). h's and a tracer's are the same arithmetic where hq
+        = h (q = 1 stays 1), and each weak ∇⁴ sums to zero (the masses kept)."""
+        return self._tracer_laplacians(x, tend[2:], "weighted" if weighted else "pointwise")
+
+    @property
+    def split_nus(self) -> tuple[float, float, float]:
+        """(ν, ν_div, ν_s) of the ∇⁴ applied split from the dynamics (``apply``): the model's, with
+        ν_s 0 where its ν_s acts inside the stages instead (``stage_hyperviscosity``)."""
+        m = self.model
+        return (m.nu, m.nu_div, 0.0 if m.stage_hyperviscosity else m.nu_s)
 
     def apply(self, x: wp.array2d, dt: float) -> None:
         """Apply ∇⁴ hyperviscosity over dt (s) in place, split from the dynamics:
@@ -520,15 +547,16 @@ class Hyperviscosity:
         exact factor is ~0; with it IMEX ARS(2,3,2) at 12 dt_g on TC5 ne8 blew
         up on day 4, as with forward Euler it does not. RKL1's P_s damps the
         interior of its interval to ≲ 0.3; the split is first order anyway.
-        Does nothing (launches nothing) with ν = ν_div = ν_s = 0. With the model's tracers (and
-        ν_s ≠ 0, ``tracer_hyperviscosity``) each substep or stage is preceded by the tracers' own
+        Does nothing (launches nothing) with ν = ν_div = ν_s = 0 (``split_nus``: ν_s 0 where it acts
+        in the stages, ``build_stage``). With the model's tracers (and
+        ν_s ≠ 0, ``tracer_hyperviscosity``, not in the stages) each substep or stage is preceded by the tracers' own
         (``build_tracers``: ν_s ∇⁴ of q(h + hs), each tracer a scalar field alone, ∫hq conserved,
         h's arithmetic where hq = h; q·hs of the substep's or stage's own state).
         """
         m = self.model
         if self.nu_max == 0.0:
             return
-        tracers = bool(m.tracers) and m.nu_s != 0.0 and m.tracer_hyperviscosity
+        tracers = bool(m.tracers) and m.nu_s != 0.0 and m.tracer_hyperviscosity and not m.stage_hyperviscosity
         n, rkl = self.plan(dt)
         if rkl:
             self.rkl1(x, dt, n, tracers)

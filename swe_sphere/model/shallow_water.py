@@ -126,6 +126,13 @@ class ShallowWater:
         values before their DSS (``rhs_update``'s ``limit``) and to the tracers' ∇⁴.
     tracer_hyperviscosity : True (default): the tracers take the ∇⁴ (``tracers`` above); False:
         none on them (q = 1 then drifts where the depth is damped; their masses are still kept).
+    stage_hyperviscosity : False (default): the depth's and the tracers' ν_s ∇⁴ applied once a
+        step, split after it (``hyperviscosity``); True: inside every stage's right-hand side
+        instead, from the stage's state (HOMME's ``advance_nonstag_rk``; ``hv.build_stage``),
+        limited with the stage's transport where the model has a limiter; the wind's ν, ν_div
+        stay split. Needs tracers, the "hyperviscosity" term and ``tracer_hyperviscosity``. The
+        stages then step ν_s ∇⁴ explicitly: ν_s Δt λ within the stepper's stability interval
+        (``hv.biharmonic_radius`` λ).
     lanes : the tendency's vector lanes on the CPU's elements at np 4 (``model.lanes``): W
         elements a vector, a thread W elements; None (default): the measured choice of the
         precision's float type (``lanes.LANES``: float32 16, float64 0); 0: its GLL rows, an element
@@ -139,7 +146,8 @@ class ShallowWater:
     ArgumentError
         (a ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
         ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle,
-        ``tracers`` or ``lanes`` not numbers in range, tracers without the continuity term, a ``device`` that is
+        ``tracers`` or ``lanes`` not numbers in range, tracers without the continuity term,
+        ``stage_hyperviscosity`` without tracers, the term or ``tracer_hyperviscosity``, a ``device`` that is
         not a name, or a ``device`` other than its ``topology``'s (the model's arrays would live
         where its launches do not: an illegal memory access on CUDA).
 
@@ -182,6 +190,7 @@ class ShallowWater:
         tracers=0,
         limiter="none",
         tracer_hyperviscosity=True,
+        stage_hyperviscosity=False,
         lanes=None,
     ):
         if not isinstance(grid, CubedSphere):
@@ -214,6 +223,9 @@ class ShallowWater:
             raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
         self.tracers, self.rows = int(tracers), 3 + int(tracers)
         self.tracer_hyperviscosity = bool(tracer_hyperviscosity)  # the ∇⁴ on them (``hyperviscosity``)
+        self.stage_hyperviscosity = bool(stage_hyperviscosity)  # ν_s ∇⁴ in the stages (``_build_tendency``)
+        if self.stage_hyperviscosity and not (tracers and "hyperviscosity" in terms and self.tracer_hyperviscosity):
+            raise ArgumentError("stage_hyperviscosity needs tracers, the hyperviscosity term and tracer_hyperviscosity")
         if limiter not in LIMITERS:
             raise ArgumentError(f"limiter must be one of {', '.join(LIMITERS)} (got {got(limiter)})")
         dtype = precision_dtype(precision)
@@ -318,6 +330,7 @@ class ShallowWater:
         options.setdefault("tracers", len(scene.tracers))
         options.setdefault("limiter", scene.tracer_limiter)
         options.setdefault("tracer_hyperviscosity", scene.tracer_hyperviscosity)
+        options.setdefault("stage_hyperviscosity", scene.tracer_stage_hyperviscosity)
         return cls.from_case(grid, case, scene.terms, **hyperviscosity, **options)
 
     # -- the recorder's (``launches.LaunchRecorder``) -----------------------
@@ -337,7 +350,9 @@ class ShallowWater:
         writes dh alone, a momentum half du, dv) and whether it is mass-weighted. Without a
         forcing the kernel writes spheremp·F, whose unweighted DSS is F's weighted one: the
         DSS then reads no copy's mass (0.72–0.84× a DSS update at ne30 np4 and ne12 np8); a
-        forcing adds F_forcing after it, so there F and the weighted DSS."""
+        forcing adds F_forcing after it, so there F and the weighted DSS. With
+        ``stage_hyperviscosity`` and "hyperviscosity" named, −ν_s ∇⁴ of h + hs and of the tracers'
+        q(h + hs) is subtracted from rows 2.. last (``hv.build_stage``; ValueError for a ``part``)."""
         terms = tuple(term for term in tendencies.TENDENCY_TERMS if term in named)
         t = self.tendency_arrays
         tend, runs = (t.tend, [None]) if part is None else (part.tend, part.runs)
@@ -369,6 +384,10 @@ class ShallowWater:
                 )
                 self._forcing_launches.append(launch)
                 launches.append(launch)
+        if self.stage_hyperviscosity and K and "hyperviscosity" in named and self.nu_s != 0.0:
+            if part is not None:  # its Laplacians' DSS between them is the whole grid's
+                raise ValueError("a part's right-hand side has no stage ∇⁴ (stage_hyperviscosity)")
+            launches.extend(self.hv.build_stage(x, tend, not forced))
         lo = 0 if forced or set(terms) - {"continuity"} else 2
         hi = 3 + K if "continuity" in terms else 3 if forced else 2
         return launches, lo, hi, not forced

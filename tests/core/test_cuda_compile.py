@@ -170,13 +170,22 @@ def _launched_kernels(monkeypatch) -> tuple[list[wp.Kernel], list[wp.Kernel]]:
     # their ∇⁴ (q·hs in the surface's place), both layouts; the transport tests' prescribed wind
     for per_element in (False, True):  # the limiter's kernels, and the ∇⁴'s with it (h's row beside) and without
         limiter = "optimization" if per_element else "none"
-        model = ShallowWater.from_scene(tc5, grid, per_element=per_element, tracers=2, limiter=limiter)
-        u, v, h = tc5.make_case().initial(grid.lat, grid.lon)
-        x = model.new_state(u, v, h, masses=np.stack([h, h]))
-        make_stepper("rk4", model, tc5.dt).step(x)
+        # and the ∇⁴ in the stages (stage_hyperviscosity): TC5's weighted tendency, the flow's pointwise one
+        for stage in (False, True):
+            model = ShallowWater.from_scene(
+                tc5, grid, per_element=per_element, tracers=2, limiter=limiter, stage_hyperviscosity=stage
+            )
+            u, v, h = tc5.make_case().initial(grid.lat, grid.lon)
+            x = model.new_state(u, v, h, masses=np.stack([h, h]))
+            make_stepper("rk4", model, tc5.dt).step(x)
         flow = make_case("deformational_flow")
         model = ShallowWater.from_case(grid, flow, ["continuity", "forcing"], per_element=per_element, tracers=1)
         u, v, h = flow.initial(grid.lat, grid.lon)
+        make_stepper("ssprk3", model, 720.0).step(model.new_state(u, v, h, masses=h[None]))
+        terms = ["continuity", "forcing", "hyperviscosity"]
+        model = ShallowWater.from_case(
+            grid, flow, terms, nu=0.0, nu_s=1e15, per_element=per_element, tracers=1, stage_hyperviscosity=True
+        )
         make_stepper("ssprk3", model, 720.0).step(model.new_state(u, v, h, masses=h[None]))
     # the float32 state ("float32_state"): its conversions, the tendency of the departed state and
     # the stages' float32 combinations, both layouts, compensated and not; not compensated, the
@@ -333,6 +342,8 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "tracer_laplacian__first",
         "tracer_laplacian__first__row2",
         "tracer_laplacian__second",
+        "tracer_laplacian__second__into_weighted",  # the ∇⁴ in the stages, into the tendency
+        "tracer_laplacian__second__into_pointwise",
         "element_bounds_np4",
         "neighbour_bounds",
         "limit_stage__mass__weighed",  # a limited stage's tracers, assembled with its dynamics rows

@@ -12,6 +12,7 @@ from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology, on_ranks
 from ..model.shallow_water import ShallowWater
 from ..steppers import STEPPERS, make_stepper
+from ..steppers.butcher import real_axis_limit
 from .resolve import refuse_precision
 from .scene import Scene
 
@@ -36,14 +37,35 @@ def check_hyperviscosity(model: ShallowWater, scene: Scene) -> None:
         )
 
 
+def check_stage_hyperviscosity(model: ShallowWater, stepper, dt: float) -> None:
+    """Refuse (``SceneError``, before the run) ν_s in the stages (``tracers.stage_hyperviscosity``)
+    past ``stepper``'s stability on the negative real axis: there its stages step −ν_s ∇⁴
+    explicitly, at ν_s Δt λ (λ ``biharmonic_radius``), which ``butcher.real_axis_limit`` of its table
+    bounds (the split ∇⁴ would take substeps instead). Only an explicit Runge–Kutta stepper carries
+    tracers (``tracers_refusal``): ``stepper.table()``."""
+    if not model.stage_hyperviscosity or model.nu_s == 0.0:
+        return
+    table = stepper.table()
+    limit = real_axis_limit(table.A_E, table.b_E)
+    stiffness = model.nu_s * dt * model.hv.biharmonic_radius()
+    if stiffness > limit:
+        raise SceneError(
+            f"tracers.stage_hyperviscosity = true: nu_s dt λ = {stiffness:.3g} (nu_s = {model.nu_s:.3g} m^4/s on this grid, "
+            f"dt = {dt:g} s) is past {stepper.name}'s stable {limit:.3g} on the negative real axis; "
+            "lower hyperviscosity.nu_s or dt, or set it false (the ∇⁴ split after each step)"
+        )
+
+
 def scene_stepper(scene: Scene, model: ShallowWater):
     """The scene's stepper on ``model`` at the scene's Δt, its clock at the scene's start
     day (not yet ``prepare``d); ``SceneError`` first for a stepper that cannot step the scene's
-    precision (``refuse_precision``: a ``Scene`` changed by ``dataclasses.replace`` too) and a
-    ν the ∇⁴ cannot step (``check_hyperviscosity``)."""
+    precision (``refuse_precision``: a ``Scene`` changed by ``dataclasses.replace`` too), a
+    ν the ∇⁴ cannot step (``check_hyperviscosity``) and ν_s in the stages past the stepper's
+    stability (``check_stage_hyperviscosity``)."""
     refuse_precision(scene.precision, scene.stepper, scene.stepper_options)
     check_hyperviscosity(model, scene)
     stepper = make_stepper(scene.stepper, model, scene.dt, **scene.stepper_options)
+    check_stage_hyperviscosity(model, stepper, scene.dt)
     stepper.t0 = scene.start_day * DAY
     return stepper
 

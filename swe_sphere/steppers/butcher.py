@@ -127,6 +127,36 @@ def _square(p: list) -> list:
     ]
 
 
+def _stability_coefficients(A, b) -> list[Fraction]:
+    """c_k = bᵀ A^(k−1) 1 (c₀ = 1), k = 0..s, exactly: R(z) = Σ c_k z^k, the stability polynomial
+    of the explicit table (A, b)."""
+    A = [[Fraction(a) for a in row] for row in A]
+    coeffs, power = [Fraction(1)], [Fraction(1)] * len(b)
+    for _ in range(len(b)):
+        coeffs.append(sum(Fraction(bj) * pj for bj, pj in zip(b, power)))
+        power = [sum(a * p for a, p in zip(row, power)) for row in A]
+    return coeffs
+
+
+def real_axis_limit(A, b) -> float:
+    """The largest x ≥ 0 with |R(−x')| ≤ 1 for every 0 ≤ x' ≤ x (R the stability polynomial of
+    the explicit table (A, b), ``imaginary_axis_limit``'s): the ν Δt λ of a damping term (an
+    eigenvalue −λ of the right-hand side, the ∇⁴'s) the table steps without growth (Hairer & Wanner
+    1996, §IV.2). 2 for forward Euler, ≈ 2.51 for SSP-RK3, 2.79 for RK4, 5.15 for SSPRK(4,3);
+    at most 2s² for s stages (the Chebyshev bound). To 1e-9."""
+    polynomial = np.polynomial.Polynomial([float(c) for c in _stability_coefficients(A, b)])
+    s = len(b)
+    xs = np.linspace(0.0, 2.0 * s * s + 1.0, 2000 * (2 * s * s + 1) + 1)
+    grows = np.abs(polynomial(-xs)) > 1.0 + 1e-12
+    if not grows.any():
+        return float(xs[-1])
+    lo, hi = xs[int(np.argmax(grows)) - 1], xs[int(np.argmax(grows))]
+    while hi - lo > 1e-10:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if abs(polynomial(-mid)) <= 1.0 + 1e-12 else (lo, mid)
+    return float(lo)
+
+
 def imaginary_axis_limit(A, b) -> float:
     """The largest y ≥ 0 with |R(iy')| ≤ 1 for every 0 ≤ y' ≤ y, where
     R(z) = 1 + Σ_k z^k bᵀ A^(k−1) 1 is the stability polynomial of the explicit table
@@ -137,11 +167,7 @@ def imaginary_axis_limit(A, b) -> float:
     |R(iy)|² = 1 + y⁴/4); √3 for every three-stage third-order table, 2√2 for the
     four-stage fourth-order ones. To 1e-9."""
     s = len(b)
-    A = [[Fraction(a) for a in row] for row in A]
-    coeffs, power = [Fraction(1)], [Fraction(1)] * s  # c_k = bᵀ A^(k−1) 1, exactly
-    for _ in range(s):
-        coeffs.append(sum(Fraction(bj) * pj for bj, pj in zip(b, power)))
-        power = [sum(a * p for a, p in zip(row, power)) for row in A]
+    coeffs = _stability_coefficients(A, b)
     # |R(iy)|² − 1 = Re² + Im² − 1, a polynomial in y: stable near 0 iff its lowest term is negative
     re = [c * (-1) ** (k // 2) if k % 2 == 0 else 0 for k, c in enumerate(coeffs)]
     im = [c * (-1) ** (k // 2) if k % 2 else 0 for k, c in enumerate(coeffs)]

@@ -8,10 +8,12 @@ import xarray as xr
 
 from swe_sphere import Simulation
 from swe_sphere.cases.tracers import TRACER_FIELDS
+from swe_sphere.cli import main
 from swe_sphere.config.scene import SceneError, load_scene, with_days
 from swe_sphere.core.errors import ArgumentError
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
+from swe_sphere.steppers.butcher import TABLES, real_axis_limit
 
 from helpers import cached_grid, make_sim
 from roundoff import bound, mass_change_bound, within
@@ -166,3 +168,31 @@ def test_the_model_refuses_a_stage_hyperviscosity_without_its_parts():
         ShallowWater(grid, ["continuity", "hyperviscosity"], zeros, zeros, nu=1e15, stage_hyperviscosity=True)
     with pytest.raises(ArgumentError, match="stage_hyperviscosity needs tracers"):
         ShallowWater(grid, ["continuity"], zeros, zeros, tracers=1, stage_hyperviscosity=True)
+
+
+def test_the_real_axis_limits_of_the_tables():
+    """``butcher.real_axis_limit``: forward Euler's 2, and for SSP-RK3, RK4 and SSPRK(4,3) the
+    least x > 0 where R(−x) = ±1 (R from the table's b and A in floats, its roots by numpy:
+    ≈ 2.513, 2.785, 5.149), where |R| first passes 1 for these tables."""
+    assert real_axis_limit([[0]], [1]) == pytest.approx(2.0, abs=1e-9)
+    for name, near in (("ssprk3", 2.513), ("rk4", 2.785), ("ssprk43", 5.149)):
+        A, b = TABLES[name].floats()[:2]
+        c = [1.0] + [float(b @ np.linalg.matrix_power(A, k - 1) @ np.ones(len(b))) for k in range(1, len(b) + 1)]
+        R = np.polynomial.Polynomial([ck * (-1) ** k for k, ck in enumerate(c)])  # R(−x)
+        roots = np.concatenate([(R - 1).roots(), (R + 1).roots()])
+        edge = min(r.real for r in roots if abs(r.imag) < 1e-9 and r.real > 1e-9)
+        assert edge == pytest.approx(near, abs=1e-3)
+        assert real_axis_limit(TABLES[name].A_E, TABLES[name].b_E) == pytest.approx(edge, abs=1e-8), name
+
+
+def test_a_stage_hyperviscosity_past_the_steppers_stability_is_refused(tmp_path, capsys):
+    """ν_s in the stages with ν_s Δt λ past the stepper's real-axis limit: ``swe-sphere run``
+    exits 2 with one line naming the key and writes no file; the scene's own ν_s runs."""
+    out = tmp_path / "run.nc"
+    args = ["run", "galewsky_marker", "--ne", "2", "--np", "4", "--days", "0.01", "--no-progress", "--output", str(out)]
+    stage = ["-s", "tracers.stage_hyperviscosity=true"]
+    assert main([*args, "-s", "hyperviscosity.nu_s=1e19", *stage]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tracers.stage_hyperviscosity" in err[0] and "negative real axis" in err[0], err
+    assert not out.exists()
+    assert main([*args, *stage]) == 0 and out.exists()  # the scene's own ν_s: stable in the stages

@@ -2,7 +2,8 @@
 tiny-grid CLI arguments and the calls that run the command line in this process
 (``cli_main``, ``cli_ok``, ``cli_one_line``, ``one_line``, ``console_script``), the CUDA marks,
 the session's cached grids and runs (``cached_grid``, ``tc6_final``, ``tc6_error``),
-``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, a TC2 scene file
+``make_sim``, ``run``, ``watched_run`` and ``assert_same_runs``, the transport test's overrides
+(``DEFORMATIONAL_FLOW``), a TC2 scene file
 (``write_tc2_scene``), a file's ``digest`` and a sweep without its figures (``without_sweep_figures``)."""
 
 from __future__ import annotations
@@ -74,6 +75,16 @@ def make_sim(scene):
     """A CPU Simulation of ``scene`` without a progress bar."""
     return Simulation(scene, "cpu", progress=False)
 
+
+# Nair & Lauritzen's deformational flow on tc2_steady's grid: the wind prescribed, the continuity
+# alone carrying the tracers, HOMME's ν_s on them (benchmarks/studies/transport's scene)
+DEFORMATIONAL_FLOW = {
+    "case.name": "deformational_flow",
+    "terms": ["continuity", "forcing", "hyperviscosity"],
+    "hyperviscosity.nu": 0.0,
+    "hyperviscosity.nu_div": 0.0,
+    "hyperviscosity.nu_s": 4.6e15,
+}
 
 RUN_TIMES = ("wall_time", "cpu_time")  # a run file's measured series: differ between any two runs
 

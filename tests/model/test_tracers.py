@@ -18,31 +18,24 @@ from swe_sphere.model.launches import Update
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
-from helpers import cached_grid, make_sim
+from helpers import DEFORMATIONAL_FLOW, cached_grid, make_sim
 from roundoff import bound, mass_change_bound, within
 
 TRACERS = {"names": ["one", "marker"], "initial": ["constant", "latitude"]}
-# Nair & Lauritzen's deformational flow on tc2_steady's grid: the wind prescribed, the continuity
-# alone carrying the tracers, HOMME's ν_s on them (benchmarks/studies/transport's scene)
-DEFORMATIONAL_FLOW = {
-    "case.name": "deformational_flow",
-    "terms": ["continuity", "forcing", "hyperviscosity"],
-    "hyperviscosity.nu": 0.0,
-    "hyperviscosity.nu_div": 0.0,
-    "hyperviscosity.nu_s": 4.6e15,
-}
 
 
 @pytest.mark.roundoff
+@pytest.mark.parametrize("stage", [False, True])
 @pytest.mark.parametrize("per_element", [True, False])
-def test_q_one_stays_one_and_each_tracer_mass_is_conserved(per_element):
+def test_q_one_stays_one_and_each_tracer_mass_is_conserved(per_element, stage):
     """TC5 on ne3 np4 with its ∇⁴ every step and topography (the ∇⁴ acts on h + hs: a tracer's on
-    q(h + hs)), 12 SSP-RK3 steps, both kernel layouts: q = 1 rides h to the bit (hq = h: the
-    continuity's arithmetic on the same numbers), within round-off of what the steps accumulate
-    at least; each tracer's mass changes by round-off alone, as h's."""
+    q(h + hs)), 12 SSP-RK3 steps, both kernel layouts, ν_s split after each step or in every stage
+    (``stage_hyperviscosity``; h's there too): q = 1 rides h to the bit (hq = h: the
+    continuity's and the ∇⁴'s arithmetic on the same numbers), within round-off of what the steps
+    accumulate at least; each tracer's mass changes by round-off alone, as h's."""
     scene = load_scene("tc5_mountain", ne=3, np_=4, stepper="ssprk3")
     grid, case = cached_grid(3, 4), scene.make_case()
-    hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s}
+    hv = {"nu": scene.nu, "nu_div": scene.nu_div, "nu_s": scene.nu_s, "stage_hyperviscosity": stage}
     model = ShallowWater.from_case(grid, case, scene.terms, tracers=2, threads=1, per_element=per_element, **hv)
     u, v, h = case.initial(grid.lat, grid.lon)
     q = TRACER_FIELDS["gaussian_hills"](grid.lat, grid.lon)

@@ -31,7 +31,7 @@ import warp as wp
 from .operators import (
     CPU_FAST,
     across_as_along,
-    covariant,
+    covariant_inverse,
     element_node,
     over,
     row_derivatives,
@@ -209,7 +209,8 @@ def tendency(
     terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
 ):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
-    x (3, N) state, D, Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
+    x (3, N) state, D (4, N; unread: the vorticity's covariant wind is formed from Dinv and
+    metdet, ``operators.covariant_inverse``), Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
     unweighted DSS is F's weighted one), dvv (np, np), np, g, h0, tend (3, N) output, offset.
     ``np_static`` > 0: compiled for that np
@@ -289,8 +290,10 @@ def tendency(
                 bx += dvv[i, m] * eq
                 by += dvv[j, m] * er
             if wp.static(ADV):
-                cx += dvv[i, m] * (D[1, q] * uq + D[3, q] * vq)
-                cy += dvv[j, m] * (D[0, r] * ur + D[2, r] * vr)
+                _, w2 = covariant_inverse(Dinv, metdet, uq, vq, q)
+                w1, _ = covariant_inverse(Dinv, metdet, ur, vr, r)
+                cx += dvv[i, m] * w2
+                cy += dvv[j, m] * w1
         wp.static(finish(terms, weighted))(p, p, div, bx, by, cx, cy, x, Dinv, metdet, fcor, forcing, mass, tend)
         for k in range(wp.static(K)):  # each tracer's mass hq by the continuity's arithmetic on h
             dq = dtype(0.0)
@@ -320,7 +323,8 @@ def tendency_element(
     terms: tuple, np_: int, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
 ):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
-    (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D, Dinv
+    (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D (unread, as
+    ``tendency``'s), Dinv
     (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
     (``weighted``: as ``tendency``'s), g, h0 (a float64 row of the reference depth),
     dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in elements). Dim nelem.
@@ -384,7 +388,7 @@ def tendency_element(
                     Q2[k * NP + j] = times(Jq, c2)
             if wp.static(ADV):
                 E[j] = dtype(0.5) * (times(u, u) + times(v, v))
-                c1, c2 = covariant(D, x, q)
+                c1, c2 = covariant_inverse(Dinv, metdet, u, v, q)
                 v1[j] = c1
                 v2[j] = c2
             if wp.static(PG):

@@ -8,7 +8,7 @@ import functools
 
 import warp as wp
 
-from .operators import CPU_FAST, row_derivatives, row_type, suffix, times, transpose16
+from .operators import CPU_FAST, covariant_inverse, row_derivatives, row_type, suffix, times, transpose16
 from .tendencies import f64, finish, inverse_det, reads_departed, term_flags
 
 
@@ -139,8 +139,13 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
             E = vw()
             if wp.static(ADV):
                 E = dtype(0.5) * (times(u, u) + times(v, v))
-                S[7, n] = times(D[0, q], u) + times(D[2, q], v)
-                S[8, n] = times(D[1, q], u) + times(D[3, q], v)
+                if wp.static(INV):  # D read, D⁻¹ formed from it
+                    S[7, n] = times(D[0, q], u) + times(D[2, q], v)
+                    S[8, n] = times(D[1, q], u) + times(D[3, q], v)
+                else:  # the rows' form: D⁻¹ read, D not (``operators.covariant_inverse``)
+                    c1, c2 = covariant_inverse(Dinv, metdet, u, v, q)
+                    S[7, n] = c1
+                    S[8, n] = c2
             if wp.static(PG):
                 if wp.static(SHIFT):
                     E = E + g * S[3, n]

@@ -69,7 +69,7 @@ from results import interleaved, positive, recorded, section, studies  # noqa: E
 from swe_sphere import Simulation  # noqa: E402
 from swe_sphere.grid.topology import Topology  # noqa: E402
 from swe_sphere.kernels.hyperviscosity_across import weak_laplacian_across  # noqa: E402
-from swe_sphere.kernels.operators import CPU_FAST, covariant, dvv_matrix, row_derivatives, times  # noqa: E402
+from swe_sphere.kernels.operators import CPU_FAST, covariant_inverse, dvv_matrix, row_derivatives, times  # noqa: E402
 from swe_sphere.kernels.tendencies import finish, tendency_element  # noqa: E402
 
 STUDIES = (
@@ -208,7 +208,7 @@ def tendency_across(NP: int, W: int):
             s[0, p] = times(Jh, times(Dinv[0, p], u) + times(Dinv[1, p], v))
             s[1, p] = times(Jh, times(Dinv[2, p], u) + times(Dinv[3, p], v))
             E = f64(0.5) * (times(u, u) + times(v, v))
-            c1, c2 = covariant(D, x, p)
+            c1, c2 = covariant_inverse(Dinv, metdet, u, v, p)  # the rows' form (D unread)
             s[3, p] = c1
             s[4, p] = c2
             s[2, p] = E + g * h

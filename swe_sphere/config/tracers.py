@@ -14,6 +14,7 @@ from ..core.errors import SceneError
 from ..io.initial_state import read_tracer_file
 from ..io.run_file import OUTPUT_FIELDS
 from ..model.limiter import LIMITERS
+from ..model.precision import tracers_refusal
 from .resolve import ResolvedCase, file_of, stepper_class
 
 
@@ -27,8 +28,8 @@ def resolve_tracers(
     key): names that are not distinct identifiers or that are a run file's own field or
     coordinate, an unknown field (without a file), lists of other lengths, a case whose h is not a depth (TC1's is itself a tracer, zero
     off its bell: q = hq / h has no value there), a scene without the continuity term (the tracers ride it),
-    or a stepper (with its ``options``: ``stepper_class``), step control or precision that does not
-    carry them (``Stepper.tracers_refusal``)."""
+    or a stepper (with its ``options``: ``stepper_class``) or step control that does not carry them
+    (``Stepper.tracers_refusal``), or a precision that does not (``model.precision.tracers_refusal``)."""
     if not table:
         return ()
     names, initial = table.get("names"), table.get("initial")
@@ -52,10 +53,11 @@ def resolve_tracers(
     why = stepper_class(stepper, options).tracers_refusal
     if why is None and controlled:
         why = "its step control weighs u, v and h alone"
-    if why is None and precision != "float64":
-        why = "its float32 tendency is not written for them"
     if why is not None:
         raise SceneError(f"[tracers] with stepper {stepper}: {why}; tracers run with the explicit Runge-Kutta steppers")
+    why = tracers_refusal(precision)
+    if why is not None:
+        raise SceneError(f"[tracers] with [numerics] {why}")
     return tuple(zip(names, initial, strict=True))
 
 

@@ -46,6 +46,16 @@ def precision_dtype(precision: str):
     return PRECISIONS[precision]
 
 
+def tracers_refusal(precision: str) -> str | None:
+    """Why ``precision`` cannot carry tracers, in one line (None: it can, "float64"): the
+    tracers' tendency rows, their ∇⁴ and their limiter are written in float64 alone. Both the
+    model (``ShallowWater``'s ``tracers``) and a scene's [tracers] (``config.tracers``) refuse
+    with it."""
+    if precision == "float64":
+        return None
+    return f'precision "{precision}" does not carry tracers (their tendency and ∇⁴ are float64 alone): use "float64"'
+
+
 def state_dtype(precision: str):
     """The Warp float type a step's state and stages are held in: float32 under
     "float32_state" (u, v and h − H₀: ``kernels.departure``), else float64."""

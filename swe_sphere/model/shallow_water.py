@@ -36,7 +36,7 @@ from .launches import LaunchRecorder, check_updates
 from .limiter import LIMITERS, TracerLimiter
 from .mass_fixer import MassFixer
 from .parts import ElementPart, element_runs
-from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype
+from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype, tracers_refusal
 
 TERMS = (
     "continuity",
@@ -146,7 +146,8 @@ class ShallowWater:
     ArgumentError
         (a ``SweSphereError`` and ``ValueError``) naming the argument for a ``grid`` that is not a
         ``CubedSphere``, ``fcor`` or ``hs`` not finite numbers of shape (N,), ν, g, the subcycle,
-        ``tracers`` or ``lanes`` not numbers in range, tracers without the continuity term,
+        ``tracers`` or ``lanes`` not numbers in range, tracers without the continuity term or
+        under a precision other than "float64" (``precision.tracers_refusal``),
         ``stage_hyperviscosity`` without tracers, the term or ``tracer_hyperviscosity``, a ``device`` that is
         not a name, or a ``device`` other than its ``topology``'s (the model's arrays would live
         where its launches do not: an illegal memory access on CUDA).
@@ -229,6 +230,8 @@ class ShallowWater:
         if limiter not in LIMITERS:
             raise ArgumentError(f"limiter must be one of {', '.join(LIMITERS)} (got {got(limiter)})")
         dtype = precision_dtype(precision)
+        if tracers and (why := tracers_refusal(precision)) is not None:
+            raise ArgumentError(f"tracers={tracers} with {why}")
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets

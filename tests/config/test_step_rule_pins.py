@@ -10,7 +10,8 @@ the filter's weight and the notes on them that ``load_scene`` gave at main 3f068
 they are regression pins: a change to them is a change of behaviour, made on purpose. The case-7
 scenes (``tc7_*``, issue 115) came after that commit; their lines were added the same way when
 they arrived, every other line unchanged, and so were the marker scenes' (``galewsky_marker``,
-``tc5_mountain_marker``, issue 125)."""
+``tc5_mountain_marker``, issue 125); their float32 lines' refusal was reworded on purpose when it
+came to name the precision, not the stepper (``model.precision.tracers_refusal``)."""
 
 from __future__ import annotations
 
@@ -116,7 +117,7 @@ galewsky_marker/auto 157.66423357664235 157.66423357664235 8 1 - time.dt of scen
 galewsky_marker/auto_ne8 236.0655737704918 236.0655737704918 6 1 - time.dt of scene galewsky_marker scaled to ne=8 np=8
 galewsky_marker/auto_ne24_np6 170.07874015748033 170.07874015748033 8 1 - time.dt of scene galewsky_marker scaled to ne=24 np=6
 galewsky_marker/every3_ne12 157.66423357664235 157.66423357664235 3 1 - time.dt of scene galewsky_marker
-galewsky_marker/float32_auto_ne6 error [tracers] with stepper kgu35: its float32 tendency is not written for them; tracers run with the explicit Runge-Kutta steppers
+galewsky_marker/float32_auto_ne6 error [tracers] with [numerics] precision "float32" does not carry tracers (their tendency and ∇⁴ are float64 alone): use "float64"
 galewsky_marker/restart_auto_ne5 375.6521739130435 375.6521739130435 4 1 - time.dt of scene galewsky_marker scaled to ne=5 np=8
 galewsky_marker/stream_auto_ne9 209.70873786407768 209.70873786407768 8 1 - time.dt of scene galewsky_marker scaled to ne=9 np=8
 galewsky_marker/filter_auto_ne8 236.0655737704918 236.0655737704918 6 1 0.17858047838854718 time.dt of scene galewsky_marker scaled to ne=8 np=8
@@ -324,7 +325,7 @@ tc5_mountain_marker/auto 211.76470588235293 211.76470588235293 8 1 - time.dt of 
 tc5_mountain_marker/auto_ne8 785.4545454545455 785.4545454545455 2 1 - time.dt of scene tc5_mountain_marker scaled to ne=8 np=4
 tc5_mountain_marker/auto_ne24_np6 112.5 112.5 16 1 - time.dt of scene tc5_mountain_marker scaled to ne=24 np=6
 tc5_mountain_marker/every3_ne12 526.829268292683 526.829268292683 3 1 - time.dt of scene tc5_mountain_marker scaled to ne=12 np=4
-tc5_mountain_marker/float32_auto_ne6 error [tracers] with stepper rk4: its float32 tendency is not written for them; tracers run with the explicit Runge-Kutta steppers
+tc5_mountain_marker/float32_auto_ne6 error [tracers] with [numerics] precision "float32" does not carry tracers (their tendency and ∇⁴ are float64 alone): use "float64"
 tc5_mountain_marker/restart_auto_ne5 1234.2857142857142 1234.2857142857142 1 1 - time.dt of scene tc5_mountain_marker scaled to ne=5 np=4
 tc5_mountain_marker/stream_auto_ne9 696.7741935483871 696.7741935483871 2 1 - time.dt of scene tc5_mountain_marker scaled to ne=9 np=4
 tc5_mountain_marker/filter_auto_ne8 785.4545454545455 785.4545454545455 2 1 0.1960207496686738 time.dt of scene tc5_mountain_marker scaled to ne=8 np=4

@@ -18,7 +18,7 @@ from swe_sphere.model.launches import Update
 from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import make_stepper
 
-from helpers import DEFORMATIONAL_FLOW, cached_grid, make_sim
+from helpers import DEFORMATIONAL_FLOW, cached_grid, cli_one_line, make_sim
 from roundoff import bound, mass_change_bound, within
 
 TRACERS = {"names": ["one", "marker"], "initial": ["constant", "latitude"]}
@@ -108,6 +108,35 @@ def test_tracers_that_cannot_ride_are_refused_in_one_line(tables, words):
     assert "\n" not in line
     for word in words:
         assert word in line
+
+
+@pytest.mark.parametrize("precision", ["float32", "float32_state"])
+def test_tracers_under_float32_are_refused_in_one_line(precision, capsys, tmp_path, monkeypatch):
+    """The tracers' tendency rows and ∇⁴ are float64 alone: a float32 precision with tracers is
+    refused by the model at construction (not by Warp inside a step's launch), by a scene's
+    [tracers] and by the command line (exit 2, nothing written), each naming the precision."""
+    grid, scene = cached_grid(2, 4), load_scene("tc5_mountain", ne=2, np_=4)
+    with pytest.raises(ArgumentError) as err:
+        ShallowWater.from_case(grid, scene.make_case(), scene.terms, tracers=1, precision=precision, threads=1)
+    assert str(err.value) == f'tracers=1 with precision "{precision}" does not carry tracers ' + (
+        '(their tendency and ∇⁴ are float64 alone): use "float64"'
+    )
+    with pytest.raises(SceneError, match=rf'^\[tracers\] with \[numerics\] precision "{precision}" does not carry'):
+        load_scene("tc5_mountain", ne=2, np_=4, precision=precision, tracers=TRACERS)
+    monkeypatch.chdir(tmp_path)
+    options = [
+        "-s",
+        f'numerics.precision="{precision}"',
+        "-s",
+        'tracers.names=["q0"]',
+        "-s",
+        'tracers.initial=["constant"]',
+    ]
+    line = cli_one_line(
+        capsys, ["run", "tc5_mountain", "--ne", "2", *options], 2, f'precision "{precision}"', "tracers"
+    )
+    assert "stepper" not in line
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_restart_carries_the_tracers_bitwise(tmp_path):

@@ -196,12 +196,14 @@ class _Tee(io.TextIOBase):
 
 
 @contextlib.contextmanager
-def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
+def recorded(script: str, stem: str | None = None, study: str | None = None) -> Iterator[dict]:
     """Run the block with its printed lines kept; on a normal exit write them, and the named
     figures the block put in the yielded dict, to ``results/<script>/<stem>.json`` (default
-    the script's stem; the folders made if absent; the file replaced). ``script``: the script's path
-    (``__file__``). Nothing is written when the block raises (a refused option, an interrupted
-    run)."""
+    the script's stem), or with a ``study`` (a script of several) to
+    ``results/<script>/<study>/<stem>.json`` (default the study's name); a ``stem`` that is an
+    absolute path (``--results`` a path from the root) to ``<stem>.json`` itself. The folders are made if absent,
+    the file replaced. ``script``: the script's path (``__file__``). Nothing is written when the
+    block raises (a refused option, an interrupted run)."""
     figures: dict = {}
     load_start = os.getloadavg()
     started = datetime.datetime.now(datetime.UTC)
@@ -219,7 +221,8 @@ def recorded(script: str, stem: str | None = None) -> Iterator[dict]:
         "figures": figures,
         "printed": tee.kept.getvalue().splitlines(),
     }
-    path = RESULTS / Path(script).stem / f"{stem or Path(script).stem}.json"
+    folder = RESULTS / Path(script).stem / (study or "")
+    path = folder / f"{stem or study or Path(script).stem}.json"  # an absolute stem: Path's / keeps it whole
     path.parent.mkdir(parents=True, exist_ok=True)
     # the file names no folder of this machine (the repository's own paths relative to it)
     path.write_text(portable(json.dumps(record, indent=1, ensure_ascii=False)) + "\n")

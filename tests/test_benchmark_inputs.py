@@ -5,6 +5,7 @@ naming the value, exit 2, no traceback, and no results file (written at a normal
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import subprocess
@@ -262,3 +263,30 @@ def test_a_record_names_the_repository_s_paths_relative_and_others_by_their_last
         "--mesh tests/data/m.g; .: 2.1 s; at warp/_src/context.py:12(launch); "
         "numpy/x.py:3; /usr/bin/mpirun -np 1; --python DIR/python; m/s, h / g"
     )
+
+
+def test_a_results_path_given_absolute_is_written_there(tmp_path):
+    """``--results /some/where/x`` writes /some/where/x.json, with a script's study
+    (``recorded``'s ``study``: results/<script>/<study>/<stem>.json) or without one; without
+    ``--results`` a study's file is results/<script>/<study>/<study>.json as before. (In a child
+    process, as above, its ``RESULTS`` moved to a folder of the test's.)"""
+    code = (
+        "import results, sys\n"
+        "from pathlib import Path\n"
+        "results.RESULTS = Path(sys.argv[3])\n"
+        "for stem, study in ((sys.argv[1], 'across_elements'), (sys.argv[2], None), (None, 'across_elements')):\n"
+        "    with results.recorded('replaced_paths.py', stem, study) as figures:\n"
+        "        figures['n'] = 7; print('row')\n"
+    )
+    args = [str(tmp_path / "a" / "study"), str(tmp_path / "plain"), str(tmp_path / "results")]
+    done = subprocess.run([sys.executable, "-c", code, *args], cwd=BENCHMARKS, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*.json")) == [
+        "a/study.json",
+        "plain.json",
+        "results/replaced_paths/across_elements/across_elements.json",
+    ]
+    for path in tmp_path.rglob("*.json"):
+        record = json.loads(path.read_text())
+        assert record["figures"] == {"n": 7} and record["printed"] == ["row"]
+    assert f"figures written to {tmp_path / 'a' / 'study.json'}" in done.stderr

@@ -341,7 +341,7 @@ def measure_across(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
 def across_elements(argv: list[str]) -> None:
     """``across_elements``: its options from ``argv``, its runs, its results file."""
     args = across_arguments(argv)
-    with recorded(__file__, f"across_elements/{args.results or 'across_elements'}") as figures:
+    with recorded(__file__, args.results, study="across_elements") as figures:
         print(f"load average at the start: {os.getloadavg()}")
         out = [measure_across(kind, *c, args.rounds) for c in args.case for kind in ("laplacian", "tendency")]
         print(f"\nCPU ns a node, medians of {args.rounds} interleaved rounds, one thread")
@@ -397,7 +397,7 @@ def dss_by_element(argv: list[str]) -> None:
     args = dss_arguments(argv)
     grid = {k: v for k, v in (("ne", args.ne), ("np", args.np)) if v}
     with (
-        recorded(__file__, f"dss_by_element/{args.results or 'dss_by_element'}") as figures,
+        recorded(__file__, args.results, study="dss_by_element") as figures,
         threadpool_limits(limits=1),
     ):
         print(f"load average at the start: {os.getloadavg()}")

@@ -195,7 +195,7 @@ def parse_dual(argv: list[str]) -> argparse.Namespace:
 def dual_mesh(argv: list[str]) -> None:
     """``dual_mesh``: its options from ``argv``, its runs, its results file."""
     arguments = parse_dual(argv)
-    with recorded(__file__, f"dual_mesh/{arguments.results or 'dual_mesh'}") as figures:
+    with recorded(__file__, arguments.results, study="dual_mesh") as figures:
         dual_costs(arguments, figures)
 
 

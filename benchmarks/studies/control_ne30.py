@@ -294,7 +294,7 @@ def adaptive_ne30(argv: list[str]) -> None:
     args = parser.parse_args(argv)
     quiet_warp()
     stem = args.results or ("adaptive_ne30_dt" if args.dt_runs else None)
-    with recorded(__file__, f"adaptive_ne30/{stem or 'adaptive_ne30'}") as figures:
+    with recorded(__file__, stem, study="adaptive_ne30") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
         fixed = {"tc5": args.tc5_fixed, "galewsky": args.galewsky_fixed}
         days = {"tc5": args.tc5_days, "galewsky": args.galewsky_days}
@@ -536,7 +536,7 @@ def control_overhead(argv: list[str]) -> None:
     global DEVICE
     DEVICE = args.device
     quiet_warp()
-    with recorded(__file__, f"control_overhead/{args.results or 'control_overhead'}") as figures:
+    with recorded(__file__, args.results, study="control_overhead") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["args"] = vars(args)
         for control in args.control:

@@ -407,7 +407,7 @@ def adaptive_proportionality(argv: list[str]) -> None:
     args = parser.parse_args(argv)
     args.pair_rtols = {k: [float(r) for r in v.split(",")] for k, v in (a.split("=") for a in args.pair_rtols)}
     quiet_warp()
-    with recorded(__file__, f"adaptive_proportionality/{args.results or 'adaptive_proportionality'}") as figures:
+    with recorded(__file__, args.results, study="adaptive_proportionality") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         warm("tc5_mountain", args.ne, sorted({s.split("@")[0] for s in args.fixed} | set(args.pairs)))
         if "a" in args.parts and "tc2" in args.cases:
@@ -489,7 +489,7 @@ def adaptive_balanced(argv: list[str]) -> None:
     parser.add_argument("--results", help="the results file's stem (default adaptive_balanced)")
     args = parser.parse_args(argv)
     quiet_warp()
-    with recorded(__file__, f"adaptive_balanced/{args.results or 'adaptive_balanced'}") as figures:
+    with recorded(__file__, args.results, study="adaptive_balanced") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         for stepper in ("rk4", "kgu35", "fbrk32", *args.pairs):  # compiled before any timing
             run("tc5_mountain", args.ne, 0.25, stepper)
@@ -562,7 +562,7 @@ def adaptive_hard_start(argv: list[str]) -> None:
     if unknown:
         parser.error(f"--pairs: unknown {', '.join(unknown)} (the steppers: swe-sphere list)")
     quiet_warp()
-    with recorded(__file__, f"adaptive_hard_start/{args.results or 'adaptive_hard_start'}") as figures:
+    with recorded(__file__, args.results, study="adaptive_hard_start") as figures:
         print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         figures["rtol"], figures["ne"] = args.rtol, args.ne
         for case in args.cases:

@@ -370,7 +370,7 @@ def kernel_costs(args: argparse.Namespace, figures: dict) -> None:
 def kernel_roofline(argv: list[str]) -> None:
     """``kernel_roofline``: its options from ``argv``, its runs, its results file."""
     arguments = parse_kernel(argv)
-    with recorded(__file__, f"kernel_roofline/{arguments.results or 'kernel_roofline'}") as figures:
+    with recorded(__file__, arguments.results, study="kernel_roofline") as figures:
         kernel_costs(arguments, figures)
 
 

@@ -145,6 +145,9 @@ def test_each_output_time_gathers_a_state_once(tmp_path, monkeypatch):
     assert shapes == [(4, n), (4, n)]
 
 
+# two passive tracers, q = 1 and a latitude marker, with the limiter
+LIMITED_TRACERS = ["-s", 'tracers.names=["one", "marker"]', "-s", 'tracers.initial=["constant", "latitude"]']
+LIMITED_TRACERS += ["-s", 'tracers.limiter="optimization"']
 EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits on 1, 2 and 3 ranks
     ("tc2_steady", ["--stepper", "rk4", "--days", "0.25"]),
     ("tc2_steady", ["--stepper", "kgu35", "--days", "0.25"]),
@@ -156,8 +159,13 @@ EXPLICIT_RUNS = [  # (scene, its options): each of these runs has the same bits 
     (  # passive tracers: their rows in the tendency, the DSS and the stages, their ∇⁴ (q·hs), their q and
         # masses, the limiter (its neighbours' bounds exchanged)
         "galewsky",
-        ["--stepper", "ssprk3", "--days", "0.1", "-s", 'tracers.names=["one", "marker"]']
-        + ["-s", 'tracers.initial=["constant", "latitude"]', "-s", 'tracers.limiter="optimization"'],
+        ["--stepper", "ssprk3", "--days", "0.1", *LIMITED_TRACERS],
+    ),
+    (  # and their ∇⁴ inside every stage (tracers.stage_hyperviscosity), its Laplacians' DSS over the
+        # ranks; a Δt whose ν_s Δt λ (3.2) ssprk43's stages hold (5.15; the scene's 785 s: 6.9)
+        "galewsky",
+        ["--stepper", "ssprk43", "--dt", "360", "--days", "0.1", *LIMITED_TRACERS]
+        + ["-s", "tracers.stage_hyperviscosity=true"],
     ),
     ("tc7_era_july", ["--days", "0.1"]),  # a reanalysis start (ERA-Interim's July), synthesised at each rank's nodes
     ("tc5_mountain", ["--stepper", "kgu35", "--days", "0.1", "--precision", "float32"]),  # a float32 tendency

@@ -310,9 +310,11 @@ def dss_update(
     (as ``dss_rows``). x of ``dtype`` (``gather``); the terms and outputs of ``state``
     (float32: the float32 state's stages, each combination summed in float32, ``combination``'s
     float32 form; ``precision = "float32_state"``), the rest float64. ``assembled`` A > 0: the
-    last A rows of out0 take k itself, not the combination (a limited stage's tracer rows, their
-    terms of the weighted DSS in x: ``kernels.limiter.limit_stage``'s ``weigh``; one update)."""
+    last A rows of out0 take s00 + k, not the combination (a limited stage's tracer rows, their
+    terms of the weighted DSS of the values less s00 in x: ``kernels.limiter.limit_stage``'s
+    ``weigh`` and ``relative``; one update; k alone where the pattern has no array, "k")."""
     A = _assembled(assembled, rows, patterns)
+    BASE = patterns[0] != "k"  # the assembled rows' s00, the state their terms are taken from
     sum_copies = gather(rows, bool(weighted), copies, ghosts, dtype)
     first = combination(patterns[0], state)
     second = combination(patterns[-1], state)
@@ -340,7 +342,10 @@ def dss_update(
                     out1[r, p] = state(second(wp.vec3d(c[3], c[4], c[5]), k[r], s10, s11, r, p))
             if wp.static(A > 0):
                 for r in range(wp.static(rows - A), wp.static(rows)):
-                    out0[r, p] = state(k[r])
+                    if wp.static(BASE):
+                        out0[r, p] = state(f64(s00[r, p]) + k[r])
+                    else:
+                        out0[r, p] = state(k[r])
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted") + suffix(dtype)
     name += state_suffix(state) + assembled_suffix(A)
@@ -466,6 +471,7 @@ def dss_update_elements(
     may alias each other, not x. x of ``dtype`` (``gather_rows``), the terms and outputs of
     ``state`` and ``assembled`` as ``dss_update``'s, the rest float64."""
     A = _assembled(assembled, rows, patterns)
+    BASE = patterns[0] != "k"  # as ``dss_update``'s
     R, NP = int(rows), int(np_)
     vec = wp.types.vector(length=NP, dtype=f64)
     xvec = operators.row_type(NP, dtype)
@@ -502,7 +508,10 @@ def dss_update_elements(
                     out1[r, q] = svec(second(wp.vec3d(c[3], c[4], c[5]), k, s10, s11, r, q))
             if wp.static(A > 0):
                 for r in range(wp.static(R - A), R):
-                    out0[r, q] = svec(M[r])
+                    if wp.static(BASE):
+                        out0[r, q] = svec(vec(s00[r, q]) + M[r])
+                    else:
+                        out0[r, q] = svec(M[r])
 
     name = "dss_update__" + "__".join(patterns) + ("" if weighted else "__unweighted")
     name = ("dss" if patterns == ("k",) else name) + suffix(dtype) + state_suffix(state)  # "k": the DSS's key

@@ -172,8 +172,9 @@ def limit_stage(
     ∇⁴'s, ``first`` = 2). ``weigh``: out[k] = spheremp·h·q̃, the mass-weighted DSS's own terms
     (the same products), for an unweighted DSS pass to assemble with other rows (the stage's
     dynamics rows: ``dss.dss_update``'s ``assembled``); out may then be tend's own tracer rows
-    (each element reads its own before it writes them). ``relative``: out[k] = h·q̃ − a₀·s₀, for a
-    weighted DSS update that adds a₀·s₀ back (``dss.dss_update``'s "ak"). An element within its
+    (each element reads its own before it writes them). ``relative``: what either writes less s₀'s
+    (its terms of h·q̃ − s₀; s₀ an assembled state, the DSS update adds it back: ``dss.dss_update``'s
+    "ak" or its ``assembled`` rows). An element within its
     bounds keeps its values; one outside them is limited in q − qmin (``limited`` with bounds 0,
     qmax − qmin) and takes the change alone, h·(q̃ − q), so that only what the limiter moves is
     rounded."""
@@ -237,10 +238,10 @@ def limit_stage(
                 for j in range(NP):  # the limiter's change alone: untouched nodes keep their values' bits
                     V[j] = V[j] + wp.cw_mul(D[j] - Q[j], H[j])
             for j in range(NP):
+                if wp.static(REL):
+                    V[j] = V[j] - s0[3 + k, base + j]
                 if wp.static(WEIGH):
                     out[k, base + j] = wp.cw_mul(spheremp[base + j], V[j])
-                elif wp.static(REL):
-                    out[k, base + j] = V[j] - a[0] * s0[3 + k, base + j]
                 else:
                     out[k, base + j] = V[j]
 

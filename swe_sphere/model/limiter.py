@@ -79,8 +79,10 @@ class TracerLimiter:
         arrays and F once, F from the element-local ``tend``, spheremp·F where ``weighted``, its
         rows the state's from ``first``: 0, the tendency; 2, the ∇⁴'s of h and the tracers): its
         element-local values limited (``kernels.limiter.limit_stage``) and assembled by the
-        mass-weighted DSS into out[3:] (of the values less a₀·s₀, the first source's part, which the
-        DSS update adds back). The caller runs the first launch before any other writes
+        mass-weighted DSS into out[3:], of the values less s₀ (the first source, an assembled state),
+        which the DSS update adds back: a mass-weighted DSS of whole values biases the mass by
+        rspheremp's rounding, the same at every DSS (−0.035 ε a DSS at ne4 np4), of an increment by
+        that of the increment alone. The caller runs the first launch before any other writes
         the update's arrays' rows it reads, and the others after it. ``rkl``: the terms (1, s₀),
         (ν, s₁), (coef, F) formed as an RKL1 stage (``kernels.dss.rkl_stage``'s arithmetic).
         ``assemble`` False (``first`` 0): the limiting launch alone, writing over tend's tracer
@@ -94,17 +96,14 @@ class TracerLimiter:
         srcs = [src for _, src in arrays] + [update.out] * (2 - len(arrays))
         flux = [a for a, src in update.terms if src is None]
         kernel = limiter.limit_stage(
-            weighted, first, m.grid.np, rkl, weigh=weighted and not assemble, relative=assemble
+            weighted, first, m.grid.np, rkl, weigh=weighted and not assemble, relative=bool(arrays)
         )
         rows = m.operators.as_rows
         args = [wp.vec3d(*a, *flux), *map(rows, (*srcs, tend)), *self._limits()]
         if not assemble:
             args[-1] = rows(tend[3 - first :])
             return [m.launches.elements(kernel, args)]
-        # the kernel wrote the values less a₀·s₀, the DSS adds it back: a mass-weighted DSS of whole
-        # values biases the mass by rspheremp's rounding (−0.035 ε a DSS at ne4 np4), of an increment
-        # by that of the increment alone
-        assembled = [(a[0], srcs[0][3:])] if arrays else []
+        assembled = [(1.0, srcs[0][3:])] if arrays else []
         return [
             m.launches.elements(kernel, args),
             *m.topology.dss_update(self.work, [(update.out[3:], [*assembled, (1.0, None)])]),

@@ -346,7 +346,7 @@ def test_the_discovery_covers_every_term_set_layout_and_kernel_file(discovered, 
         "tracer_laplacian__second__into_pointwise",
         "element_bounds_np4",
         "neighbour_bounds",
-        "limit_stage__mass__weighed",  # a limited stage's tracers, assembled with its dynamics rows
+        "limit_stage__mass__weighed__relative",  # a limited stage's tracers, assembled with its dynamics rows
         "limit_stage__mass__from2__relative",  # the ∇⁴ stages' tracers, their change from the stage's state
         "axpbypcz",
         "dss",

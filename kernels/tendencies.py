@@ -209,8 +209,8 @@ def tendency(
     terms: tuple, np_static: int = 0, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
 ):
     """The tendency kernel for ``terms`` (a tuple in ``TENDENCY_TERMS`` order). Arguments:
-    x (3, N) state, D (4, N; unread: the vorticity's covariant wind is formed from Dinv and
-    metdet, ``operators.covariant_inverse``), Dinv (4, N), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
+    x (3, N) state, Dinv (4, N) (the vorticity's covariant wind formed from it and metdet,
+    ``operators.covariant_inverse``: D is not read), metdet, fcor (N), forcing (2, N) topographic −g∇hs,
     mass (N) the element mass spheremp (read if ``weighted``: tend = spheremp·F, whose
     unweighted DSS is F's weighted one), dvv (np, np), np, g, h0, tend (3, N) output, offset.
     ``np_static`` > 0: compiled for that np
@@ -237,7 +237,6 @@ def tendency(
 
     def kernel(
         x: wp.array2d(dtype=xtype),
-        D: wp.array2d(dtype=dtype),
         Dinv: wp.array2d(dtype=dtype),
         metdet: wp.array(dtype=dtype),
         fcor: wp.array(dtype=dtype),
@@ -323,9 +322,8 @@ def tendency_element(
     terms: tuple, np_: int, weighted: bool = False, dtype=f64, tracers: int = 0, departed: bool = False
 ):
     """The tendency kernel for ``terms``, one thread per element, on GLL rows
-    (``operators.row_vectors`` views). Arguments: x (3, N/np) state, D (unread, as
-    ``tendency``'s), Dinv
-    (4, N/np), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
+    (``operators.row_vectors`` views). Arguments: x (3, N/np) state, Dinv (4, N/np; D not
+    read, as ``tendency``'s), metdet, fcor (N/np), forcing (2, N/np) topographic −g∇hs, mass (N/np)
     (``weighted``: as ``tendency``'s), g, h0 (a float64 row of the reference depth),
     dvv (``operators.dvv_matrix``), tend (3, N/np) output, offset (in elements). Dim nelem.
     ``dtype``, h0, ``tracers`` and ``departed`` as ``tendency``'s (h0 a row of x's type)."""
@@ -344,7 +342,6 @@ def tendency_element(
 
     def kernel(
         x: wp.array2d(dtype=state),
-        D: wp.array2d(dtype=vec),
         Dinv: wp.array2d(dtype=vec),
         metdet: wp.array(dtype=vec),
         fcor: wp.array(dtype=vec),

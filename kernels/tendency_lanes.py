@@ -40,7 +40,8 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
     arithmetic): float64 gives the rows' bits (tests/model/test_tendency_lanes.py); in float32
     clang contracts other products into FMAs, so the two agree to float32's round-off.
 
-    Arguments: x (3, N/np²) the state, D, Dinv (4, ·; float32 unread, D⁻¹ formed from D), metdet, fcor, forcing (2, ·) topographic
+    Arguments: x (3, N/np²) the state, metric (4, ·) D in float32 (D⁻¹ formed from it) and D⁻¹ in
+    float64 (D not read: ``operators.covariant_inverse``), metdet, fcor, forcing (2, ·) topographic
     −g∇hs, mass (·) spheremp in the across layout (W-vectors of ``dtype``), g, h0 (``tendency``'s,
     a row of np² values of x's type), dvv (``operators.dvv_matrix``), S (a thread's scratch,
     ``parallel.record``'s ``per_part``), tend (3, N/np²) output, nelem (the last block's lanes
@@ -75,8 +76,7 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
 
     def kernel(
         x: wp.array2d(dtype=state),
-        D: wp.array2d(dtype=vw),
-        Dinv: wp.array2d(dtype=vw),
+        metric: wp.array2d(dtype=vw),
         metdet: wp.array(dtype=vw),
         fcor: wp.array(dtype=vw),
         forcing: wp.array2d(dtype=vw),
@@ -92,6 +92,9 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
         b = wp.tid() + offset
         bn = b * NN
         e0 = b * W
+        # the metric under the names its formulas use: D under float32 (INV), D⁻¹ under float64
+        D = metric
+        Dinv = metric
         # S's rows: u, v, h (the depth, or a departed state's h − H₀), g's height (the mixed
         # float32's h − H₀), then the mass flux metdet h c¹, c², the Bernoulli function and the
         # covariant wind v₁, v₂; finish writes du, dv, dh over u, v, h at its node, which no
@@ -179,10 +182,7 @@ def tendency_across(terms: tuple, np_: int, lanes: int, weighted: bool = False, 
                     cx += dvv[i, m] * S[8, j * NP + m]
                 for m in range(NP):
                     cy += dvv[j, m] * S[7, m * NP + i]
-            if wp.static(INV):
-                end(q, n, div, bx, by, cx, cy, S, D, metdet, fcor, forcing, mass, S)
-            else:
-                end(q, n, div, bx, by, cx, cy, S, Dinv, metdet, fcor, forcing, mass, S)
+            end(q, n, div, bx, by, cx, cy, S, metric, metdet, fcor, forcing, mass, S)
         if wp.static(SHUFFLED):  # the tendency out likewise, the last block's lanes past nelem left
             for r in range(3):
                 for k in range(CH):

@@ -187,7 +187,6 @@ def tendency_across(NP: int, W: int):
 
     def tendency(
         x: wp.array2d(dtype=vw),
-        D: wp.array2d(dtype=vw),
         Dinv: wp.array2d(dtype=vw),
         metdet: wp.array(dtype=vw),
         fcor: wp.array(dtype=vw),
@@ -208,7 +207,7 @@ def tendency_across(NP: int, W: int):
             s[0, p] = times(Jh, times(Dinv[0, p], u) + times(Dinv[1, p], v))
             s[1, p] = times(Jh, times(Dinv[2, p], u) + times(Dinv[3, p], v))
             E = f64(0.5) * (times(u, u) + times(v, v))
-            c1, c2 = covariant_inverse(Dinv, metdet, u, v, p)  # the rows' form (D unread)
+            c1, c2 = covariant_inverse(Dinv, metdet, u, v, p)  # the rows' form (D not read)
             s[3, p] = c1
             s[4, p] = c2
             s[2, p] = E + g * h
@@ -300,7 +299,7 @@ def measure_across(kind: str, NP: int, ne: int, W: int, rounds: int) -> dict:
         shape = (nelem, NP, NP)
         x = rng.standard_normal((3, *shape))
         x[2] = 5e3 + 1e3 * x[2]  # a depth, m
-        values = [x, rng.standard_normal((4, *shape)), rng.standard_normal((4, *shape))]  # x, D, Dinv
+        values = [x, rng.standard_normal((4, *shape))]  # x, Dinv
         values += [1 + rng.random(shape), 1e-4 * rng.standard_normal(shape), np.zeros((2, *shape)), rng.random(shape)]
         r_in, a_in = [rows(v) for v in values], [across(v) for v in values]  # metdet, fcor, forcing, mass last
         t_rows, t_across = wp.zeros((3, nelem * NP), dtype=r_in[0].dtype), wp.zeros((3, nb * nn), dtype=a_in[0].dtype)

@@ -98,7 +98,6 @@ def per_node_error(ne, np_):
     z = [wp.zeros((r, m.N), dtype=V.f64) for r in (3, 2, 3)]
     args = [
         wp.array(x, dtype=V.f64),
-        m.operators.D,
         m.operators.Dinv,
         m.operators.metdet,
         m.operators.fcor,
@@ -107,11 +106,12 @@ def per_node_error(ne, np_):
         m.operators.dvv,
         np_,
         m.g,
+        0.0,  # h0, unread in float64
         z[2],
         0,
     ]
     tb = wp.array(k * m.grid.spheremp, dtype=V.f64)
-    adj = [z[0], None, None, None, None, z[1], None, None, 0, 0.0, tb, 0]
+    adj = [z[0], None, None, None, z[1], None, None, 0, 0.0, 0.0, tb, 0]
     wp.launch(kernel, m.N, args, adj_inputs=adj, adjoint=True)
     return float(np.abs(a - z[0].numpy()).max() / np.abs(a).max())
 

@@ -39,9 +39,9 @@ class TendencyLanes:
     ``lanes`` W: ``width`` (None: ``LANES`` of the tendency's float type ``dtype``) on a CPU's
     per-element layout at np 4 (and the float32 state's at np 8) with any element, else 0: a rank's few elements too (one block, its
     lanes past them padded), so that every rank count has one arithmetic. Where they run (``applies``),
-    the model keeps no float32 rows of D, metdet, fcor and −g∇hs (``precision.TendencyArrays``):
-    the geometry is 12 rows of N values of the tendency's type (float32's 8: D⁻¹ formed from D) against the
-    rows' 14."""
+    the model keeps no float32 rows of metdet, fcor and −g∇hs (``precision.TendencyArrays``):
+    the geometry is 8 rows of N values of the tendency's type (the metric's 4: D in float32, D⁻¹ formed
+    from it; D⁻¹ in float64), besides spheremp."""
 
     def __init__(self, model, width: int | None, dtype, per_element: bool):
         self.model = m = model
@@ -80,18 +80,19 @@ class TendencyLanes:
         return sorted(held)
 
     def geometry(self, departed: bool = False) -> list:
-        """D, Dinv (4, ·; D again in float32, whose kernel forms D⁻¹ from D), metdet, fcor, −g∇hs (2, ·; D's rows
-        without topography: unread) and spheremp in the across layout, W-vectors of the tendency's type, from
+        """The metric (4, ·: D in float32, whose kernel forms D⁻¹ from it, D⁻¹ in float64), metdet, fcor,
+        −g∇hs (2, ·; the metric's rows without topography: unread) and spheremp in the across layout,
+        W-vectors of the tendency's type, from
         their float64 values (``ElementOperators.values``). ``departed``: for a float32 state's
         tendency, which takes metdet as det D (``tendency_lanes.tendency_across``'s determinant) and
         reads none: fcor's array stands in, and metdet's (4 B a node) is made only where a launch
         reads it (the mixed float32's, float64's)."""
         if departed and self.dtype is wp.float32:
-            D, Dinv, _, fcor, *rest = self._common()
-            return [D, Dinv, fcor, fcor, *rest]
+            metric, _, fcor, *rest = self._common()
+            return [metric, fcor, fcor, *rest]
         geometry = self._common()
-        if geometry[2] is None:
-            geometry[2] = self._across(self.model.operators.values("metdet"), 1)
+        if geometry[1] is None:
+            geometry[1] = self._across(self.model.operators.values("metdet"), 1)
         return geometry
 
     def _across(self, values, rows: int):
@@ -107,14 +108,15 @@ class TendencyLanes:
         if self._geometry is None:
             m, across = self.model, self._across
             ops = m.operators
-            D = across(ops.values("D"), 4)
+            metric = across(ops.values("D" if self.dtype is wp.float32 else "Dinv"), 4)  # float32 inverts D
             topography = "forcing" in ops.geometry
             self._geometry = [
-                D,
-                D if self.dtype is wp.float32 else across(ops.values("Dinv"), 4),  # float32 inverts D
+                metric,
                 None,  # metdet: ``geometry``'s, where a launch reads it
                 across(ops.values("fcor"), 1),  # as it is now: a shared ensemble's members set theirs after the build
-                across(ops.values("forcing"), 2) if topography else D[0:2],  # read only with topography, as the rows
+                across(ops.values("forcing"), 2)
+                if topography
+                else metric[0:2],  # read only with topography, as the rows
                 across(m.spheremp[: m.N].numpy(), 1),
             ]
         return self._geometry

@@ -72,7 +72,8 @@ def rounded(a: wp.array | None, dtype) -> wp.array | None:
 
 class TendencyArrays(NamedTuple):
     """What the tendency kernels read and write besides the state, in the model's float type
-    ``dtype``: the metric terms ``D``, ``Dinv`` (4, N), ``metdet``, ``fcor``, the element mass
+    ``dtype``: the metric terms ``Dinv`` (4, N; D is not read: ``operators.covariant_inverse``),
+    ``metdet``, ``fcor``, the element mass
     ``mass`` (spheremp, N) and the topographic forcing −g∇hs ``forcing`` (2, N; None without
     topography), the derivative matrix ``dvv`` (np, np) and ``dvv_rows`` (the per-element
     kernels'), the element-local tendency ``tend`` (rows, N: 3 and the tracers') they write, and ``depth`` H₀ (m) the
@@ -80,11 +81,10 @@ class TendencyArrays(NamedTuple):
     ∇(g(h − H₀)) with h − H₀ formed in float64, so that float32 carries h's variation, not its
     mean: SpeedyWeather's scaling of its variables). Under float64 these are the model's own
     arrays (nothing is copied) and H₀ is unread; under float32 copies rounded once from the
-    float64 arrays (D, metdet, fcor and forcing None where the tendency's lanes hold their own:
+    float64 arrays (metdet, fcor and forcing None where the tendency's lanes hold their own:
     ``model.lanes``)."""
 
     dtype: object
-    D: wp.array2d
     Dinv: wp.array2d
     metdet: wp.array
     fcor: wp.array
@@ -110,17 +110,16 @@ class TendencyArrays(NamedTuple):
         ``topography``) and ``mass`` (float64) as the tendency reads them in ``dtype``, a new
         ``tend`` of the state's ``rows`` (3 and a row for each tracer), and the reference ``depth``
         (m). ``rows_geometry`` False (the tendency's lanes hold their own geometry:
-        ``model.lanes``): under float32 no copies of D, metdet, fcor and forcing (None), which only
+        ``model.lanes``): under float32 no copies of metdet, fcor and forcing (None), which only
         the tendency's rows read."""
         tend = wp.zeros((rows, ops.N), dtype=dtype, device=ops.device)
         if dtype is wp.float64:
             forcing = ops.forcing if topography else None
-            return cls(dtype, ops.D, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
+            return cls(dtype, ops.Dinv, ops.metdet, ops.fcor, mass, forcing, ops.dvv, ops.dvv_rows, tend, 0.0)
         dvv = np.asarray(ops.grid.rule.dvv)
         kept = (lambda name: ops.rounded(name, dtype)) if rows_geometry else (lambda name: None)
         return cls(
             dtype,
-            kept("D"),
             ops.rounded("Dinv", dtype),
             kept("metdet"),
             kept("fcor"),

@@ -367,8 +367,8 @@ class ShallowWater:
             for blocks in element_runs(self.lanes.blocks(runs), 0):
                 launches.append(self.lanes.launch(x, tend, terms, not forced, blocks))
         elif terms:
-            forcing = t.forcing if t.forcing is not None else t.D[0:2]  # read only with topography
-            args = [x, t.D, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
+            forcing = t.forcing if t.forcing is not None else t.Dinv[0:2]  # read only with topography
+            args = [x, t.Dinv, t.metdet, t.fcor, forcing, t.mass]
             for run in runs:
                 if ops.per_element:
                     kernel = tendencies.tendency_element(terms, self.grid.np, not forced, t.dtype, K, departed)

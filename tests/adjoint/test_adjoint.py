@@ -52,7 +52,6 @@ def test_tendency_adjoint_is_the_derivative_of_the_per_node_kernel():
     model, _, x0 = setup()
     terms = tuple(t for t in tendencies.TENDENCY_TERMS if t in model.terms)
     args = [
-        model.operators.D,
         model.operators.Dinv,
         model.operators.metdet,
         model.operators.fcor,

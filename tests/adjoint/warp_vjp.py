@@ -105,12 +105,12 @@ class TendencyVJP:
         args = [*map(R, (*metric, self.spheremp)), m.g, m.operators.dvv_rows, wp.vec3d(1.0, 0.0, 0.0), K, K, K]
         self._hand = wp.launch(hand, nelem, [*args, R(self.xbar), R(self.fbar), 0], record_cmd=True)
         h0 = row_type(np_)(0.0)  # the float64 tendency's unread reference depth
-        inputs = [*map(R, (*metric, forcing, self.spheremp)), m.g, h0, m.operators.dvv_rows, R(self.tend), 0]
+        read = (self.x, *metric[2:])  # the forward reads no D (``operators.covariant_inverse``)
+        inputs = [*map(R, (*read, forcing, self.spheremp)), m.g, h0, m.operators.dvv_rows, R(self.tend), 0]
         self._forward = wp.launch(tendencies.tendency_element(terms, np_), nelem, inputs, record_cmd=True)
         # adjoints of the metric terms not asked for: Warp skips a null adjoint array's adds
         adj = [
             R(self.xbar_ad),
-            None,
             None,
             None,
             None,
@@ -159,7 +159,6 @@ def tendency(model: ShallowWater, x: np.ndarray) -> np.ndarray:
             R,
             (
                 wp.array(x, dtype=f64),
-                m.operators.D,
                 m.operators.Dinv,
                 m.operators.metdet,
                 m.operators.fcor,

@@ -25,8 +25,7 @@ How each figure is counted:
 
 * bytes a node: every array a launch reads or writes, once (``core.tally.array_bytes`` of its
   arguments, a struct's fields included: the compulsory traffic), less the arguments its
-  compiled form does not read (``UNREAD``: the tendency's ``forcing`` without topography and its
-  ``D`` (its covariant wind formed from D⁻¹ and metdet: ``operators.covariant_inverse``), the
+  compiled form does not read (``UNREAD``: the tendency's ``forcing`` without topography, the
   ∇⁴'s ``delta`` with ν_div = ν, an unweighted gather's ``spheremp``, the ghost buffer on one
   rank, the first Laplacian's DSS arguments). An array both read and written (the substep's
   state) counts once; the DSS table counts whole (its −1 padding included).
@@ -141,7 +140,7 @@ TERMS = ("continuity", "momentum_advection", "coriolis", "pressure_gradient", "t
 # key (the tendency's without its terms); the tendency's {argument: the term without which it is unread}.
 GHOST = ("d.ghost",)  # one rank: no neighbours' copies
 UNREAD = {
-    "tendency": {"forcing": "topography", "D": None, "fcor": "coriolis"},  # None: unread whatever the terms
+    "tendency": {"forcing": "topography", "fcor": "coriolis"},
     "dss": ("d.spheremp", *GHOST),
     "laplacian_element__first": ("x", "d.table", "d.spheremp", "d.rspheremp", "Y", "delta", *GHOST),
     "laplacian_element__second": ("d.spheremp", "hs", "delta", *GHOST),
@@ -222,7 +221,7 @@ class Grid:
                 kernel = "tendency" if key.startswith("tendency__") else key
                 unread = UNREAD[kernel]
                 if isinstance(unread, dict):
-                    unread = tuple(arg for arg, term in unread.items() if term is None or term in missing)
+                    unread = tuple(arg for arg, term in unread.items() if term in missing)
                 row = (flops(kernel, np_, self.copies, m.terms), compulsory_bytes(launch, unread) / m.N)
                 self.rows[NAMES[kernel]] = row
                 self.parts[NAMES[kernel]] = launch.launch

@@ -109,14 +109,13 @@ class TendencyLanes:
             m, across = self.model, self._across
             ops = m.operators
             metric = across(ops.values("D" if self.dtype is wp.float32 else "Dinv"), 4)  # float32 inverts D
-            topography = "forcing" in ops.geometry
+            # −g∇hs, read only with topography, as the rows
+            forcing = across(ops.values("forcing"), 2) if "forcing" in ops.geometry else metric[0:2]
             self._geometry = [
                 metric,
                 None,  # metdet: ``geometry``'s, where a launch reads it
                 across(ops.values("fcor"), 1),  # as it is now: a shared ensemble's members set theirs after the build
-                across(ops.values("forcing"), 2)
-                if topography
-                else metric[0:2],  # read only with topography, as the rows
+                forcing,
                 across(m.spheremp[: m.N].numpy(), 1),
             ]
         return self._geometry

@@ -11,12 +11,15 @@ allocations, and a round's own ratio scatters widely (ne30, idle, one thread, ro
 0.22–0.55 on 2026-11-30, with the medians 0.39–0.44): take 11 rounds or more and read the median
 beside its quartiles.
 
-Each round builds its model, takes one ∇⁴ cycle untimed, times ``--steps`` steps and lets the model
-go, so that the process holds one model at a time, warm, as a user's run does. Until 2026-11-30 the
-two models lived side by side and alternated every 16 steps (their Warp arrays 41 and 46 MB at
-ne30, against this machine's 32 MB L3), so each round began with the other model's arrays in the
-caches, which a user's run never does; a cold start adds about the same time to both steps, so it
-pulled the ratio down.
+Each round builds its model in a process of its own (this script, ``--round K``), takes one ∇⁴
+cycle untimed, times ``--steps`` steps and exits, so that every model's arrays are laid out as a
+user's run lays them out, in a fresh heap. Until 2026-11-30 the rounds' models were built in turn in
+one process, each let go before the next: the later models' arrays then took the freed ones' memory
+at another layout, and the ratio scattered with it (idle, ne30, 15 rounds of 32 steps, four runs:
+0.284, 0.326, 0.362, 0.373; the step with a tracer 4.37–4.78 ms) where models built in fresh
+processes gave 0.279 (eight of each, 64 steps: the step with a tracer 4.26–4.60 ms). Before that
+the two models lived side by side and alternated every 16 steps, each round beginning with the
+other model's arrays in the caches, which a user's run never does.
 
 ``--runs DAYS``: whole runs as a user makes them instead, ``swe-sphere run tc5_mountain`` in a
 process of its own, with the K tracers (q = 1) named by ``-s tracers.…`` and without, of DAYS and
@@ -37,7 +40,6 @@ does to the caches; the CPU µs a call, medians over the rounds.
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import os
 import resource
@@ -117,10 +119,13 @@ def main() -> None:
     how = parser.add_mutually_exclusive_group()
     how.add_argument("--runs", type=positive(float), default=None, metavar="DAYS", help="whole runs instead")
     how.add_argument("--kernels", action="store_true", help="an RHS's launches, each alone, instead")
+    how.add_argument("--round", type=int, default=None, help=argparse.SUPPRESS)  # one_round's child
     args = parser.parse_args()
     if args.kernels and args.limiter != "none":
         parser.error("--kernels times an RHS, which holds no limiter: --limiter none")
     quiet_warp()
+    if args.round is not None:
+        return child_round(args)
     stem = "tracer_cost" + ("" if args.runs is None else "_runs") + ("_kernels" if args.kernels else "")
     stem += "" if args.every is None else f"_every{args.every}"
     stem += "" if args.limiter == "none" else f"_{args.limiter}"
@@ -207,17 +212,33 @@ def whole_runs(args, figures: dict) -> None:
     )
 
 
+def one_round(args, tracers: int) -> float:
+    """A step's CPU seconds with ``tracers`` q = 1 tracers, from a process of its own (``--round``)
+    that builds the model, warms it (``stepping``) and times ``args.steps`` steps."""
+    command = [sys.executable, __file__, "--round", str(tracers), "--ne", str(args.ne), "--steps", str(args.steps)]
+    command += ["--limiter", args.limiter] + ([] if args.every is None else ["--every", str(args.every)])
+    env = {**os.environ, "SWE_SPHERE_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(command, env=env, capture_output=True, text=True)
+    if done.returncode:  # a refused option (a limiter's name): the child's own line, its exit code
+        print((done.stderr.strip().splitlines() or ["tracer_cost.py: a round failed"])[-1], file=sys.stderr)
+        sys.exit(done.returncode)
+    return float(done.stdout.split()[-1])
+
+
+def child_round(args) -> None:
+    """``--round K``: one round's model (``one_round``); prints a step's CPU seconds."""
+    scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
+    step = stepping(scene, CubedSphere(args.ne, 4), args.round, args.every, args.limiter)
+    print(repr(sum(step() for _ in range(args.steps)) / args.steps))
+
+
 def measure(args, figures: dict) -> None:
     """``main``'s rounds and line; the ratio into ``figures``."""
     scene = load_scene("tc5_mountain", ne=args.ne, np_=4)
-    grid = CubedSphere(args.ne, 4)
     seconds = {k: [] for k in (0, args.tracers)}
     for _ in range(args.rounds):
         for k in seconds:  # interleaved: the machine's load falls on both alike
-            step = stepping(scene, grid, k, args.every, args.limiter)
-            seconds[k].append(sum(step() for _ in range(args.steps)) / args.steps)
-            del step
-            gc.collect()  # the model let go before the next is built: one model held at a time
+            seconds[k].append(one_round(args, k))
     bare, carried = (statistics.median(seconds[k]) for k in seconds)
     every = scene.hypervis_every if args.every is None else args.every
     figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
@@ -227,7 +248,7 @@ def measure(args, figures: dict) -> None:
         f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}"
         f"{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
         f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
-        f"(medians of {args.rounds} rounds of {args.steps} steps)"
+        f"(medians of {args.rounds} rounds of {args.steps} steps, each model in a process of its own)"
     )
 
 

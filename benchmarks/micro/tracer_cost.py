@@ -83,6 +83,20 @@ def spread(seconds: dict, tracers: int, figures: dict) -> None:
     )
 
 
+def verdict(args, seconds: dict, figures: dict, head: str, rounds: str) -> None:
+    """The ratio of the medians of ``seconds`` ({0: [...], K: [...]}, a step's CPU seconds a
+    round) into ``figures`` with their spread (``spread``), and the figure line: ``head``, the
+    steps, the ratio, and what a round is (``rounds``)."""
+    bare, carried = (statistics.median(seconds[k]) for k in seconds)
+    figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
+    spread(seconds, args.tracers, figures)
+    limited = "" if args.limiter == "none" else f" limited ({args.limiter})"
+    print(
+        f"{head}a step {bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}{limited}; "
+        f"a tracer {figures['tracer_over_step']:.3f} x a dynamics step (medians of {args.rounds} {rounds})"
+    )
+
+
 def stepping(scene, grid, tracers: int, every: int | None, limiter: str = "none"):
     """(a function taking one step and returning its CPU seconds) of ``scene`` on ``grid`` with
     ``tracers`` q = 1 tracers, its ∇⁴ every ``every`` steps (None: the scene's), the tracers'
@@ -201,14 +215,12 @@ def whole_runs(args, figures: dict) -> None:
             for k in seconds:  # interleaved: the machine's load falls on both alike
                 short, long = (run_seconds(args, k, d, Path(tmp) / "run.nc") for d in (args.runs, 2 * args.runs))
                 seconds[k].append((long - short) / steps)
-    bare, carried = (statistics.median(seconds[k]) for k in seconds)
-    figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
-    spread(seconds, args.tracers, figures)
-    print(
-        f"swe-sphere run tc5_mountain --ne {args.ne}: a step {bare * 1e3:.2f} ms CPU without tracers, "
-        f"{carried * 1e3:.2f} ms with {args.tracers}{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
-        f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
-        f"(medians of {args.rounds} rounds, runs of {args.runs:g} and {2 * args.runs:g} days)"
+    verdict(
+        args,
+        seconds,
+        figures,
+        f"swe-sphere run tc5_mountain --ne {args.ne}: ",
+        f"rounds, runs of {args.runs:g} and {2 * args.runs:g} days",
     )
 
 
@@ -239,17 +251,9 @@ def measure(args, figures: dict) -> None:
     for _ in range(args.rounds):
         for k in seconds:  # interleaved: the machine's load falls on both alike
             seconds[k].append(one_round(args, k))
-    bare, carried = (statistics.median(seconds[k]) for k in seconds)
     every = scene.hypervis_every if args.every is None else args.every
-    figures["tracer_over_step"] = (carried - bare) / (args.tracers * bare)
-    spread(seconds, args.tracers, figures)
-    print(
-        f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: a step "
-        f"{bare * 1e3:.2f} ms CPU without tracers, {carried * 1e3:.2f} ms with {args.tracers}"
-        f"{'' if args.limiter == 'none' else ' limited (' + args.limiter + ')'}; "
-        f"a tracer {(carried - bare) / (args.tracers * bare):.3f} x a dynamics step "
-        f"(medians of {args.rounds} rounds of {args.steps} steps, each model in a process of its own)"
-    )
+    head = f"tc5 ne{args.ne} np4 {scene.stepper} dt {scene.dt:.1f} s, ∇⁴ every {every}: "
+    verdict(args, seconds, figures, head, f"rounds of {args.steps} steps, each model in a process of its own")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import re
 
 def command(args) -> int:
     from ..config.scene import list_scenes, load_scene
-    from ..model.shallow_water import TERMS
+    from ..model.arguments import TERMS
     from ..steppers import STEPPERS
 
     print("scenes:")

@@ -140,7 +140,7 @@ EVERY_SPAN = 1 / 6
 # ν λ τ on the uniform cube by np (λ the ∇⁴'s spectral radius, ``Hyperviscosity.biharmonic_radius``;
 # τ the e-folding time of the Nyquist degree, ``efold_nu``): measured at ne4, 8 and 12, within
 # 1.7 % of one another, growing with ne: the ne12 figures and 2 % more, so that the ∇⁴'s plan over
-# kΔt (``model.hyperviscosity.evaluations``) counted before the model is built is not below the
+# kΔt (``model.hyperviscosity_plan.evaluations``) counted before the model is built is not below the
 # model's own
 CUBE_STIFFNESS = {np_: 1.02 * v for np_, v in {3: 3.17, 4: 7.42, 5: 16.43, 6: 32.64, 7: 59.11, 8: 99.46}.items()}
 # ``auto_every``'s search for a k that divides a count of steps stops past this many candidates

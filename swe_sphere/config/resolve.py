@@ -24,7 +24,7 @@ from ..io.initial_state import SCENE_CASES
 from ..io.reanalysis import is_given
 from ..io.run_file import OUTPUT_FIELDS
 from ..mesh.records import MeshFile, with_ne
-from ..model.shallow_water import TERMS
+from ..model.arguments import TERMS
 from ..steppers import STEPPERS
 from ..steppers.initialization import METHODS, DigitalFilter
 from .paths import grid_record
@@ -150,7 +150,7 @@ def resolve_case(table: dict, planet: Planet, scene_path: Path) -> ResolvedCase:
 
 
 def resolve_terms(terms: list | None, case: Case, case_name: str) -> tuple:
-    """The ``terms`` list as a tuple (``model.shallow_water.TERMS``). Raises ``SceneError``: none,
+    """The ``terms`` list as a tuple (``model.arguments.TERMS``). Raises ``SceneError``: none,
     an unknown or repeated term, one the case needs missing (``Case.required_terms``), forcing
     for a case without one."""
     if not terms:

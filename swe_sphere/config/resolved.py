@@ -41,7 +41,7 @@ class Scene:
     case_params : dict
         The case's parameters ([case] table).
     terms : tuple of str
-        The terms integrated (``model.shallow_water.TERMS``); an absent term costs nothing.
+        The terms integrated (``model.arguments.TERMS``); an absent term costs nothing.
     ne, np : int
         Elements along a cube edge; GLL points per element direction.
     stepper : str

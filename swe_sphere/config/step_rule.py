@@ -16,7 +16,7 @@ from ..core.arguments import got
 from ..core.clock import MAX_STEPS, Clock, common_interval, count_text
 from ..core.constants import DAY
 from ..core.errors import SceneError
-from ..model.hyperviscosity import evaluations
+from ..model.hyperviscosity_plan import evaluations
 from .hyperviscosity import Span, auto_every
 from .resolve import Spacing
 from .schema import SceneGrid, is_number

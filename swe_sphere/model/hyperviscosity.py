@@ -11,8 +11,6 @@ metric of V (``tensor_metric``), so the effective ν goes as Δx^s along each el
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import warp as wp
 
@@ -20,32 +18,12 @@ from ..core.parallel import array_key
 from ..grid.quality import element_bilinear, hypervis_tensor
 from ..kernels import hyperviscosity, hyperviscosity_across, hyperviscosity_element, hyperviscosity_node, operators
 from ..kernels import tracers as tracers_k
+from .hyperviscosity_plan import evaluations, forward_euler_substeps, rkl1_stages
 from .launches import Update
 from .precision import rounded
 from .transposes import HyperviscosityTranspose, TendencyTranspose
 
 f64 = wp.float64
-
-
-def forward_euler_substeps(stiffness: float, subcycle: int) -> int:
-    """Forward-Euler substeps of the ∇⁴ over dt, ``stiffness`` = ν dt λ (max(ν, ν_div, ν_s)
-    and λ the ∇⁴'s spectral radius): at least ``subcycle``, and enough that ν (dt/n) λ ≤ 1.5."""
-    return max(subcycle, math.ceil(stiffness / 1.5))
-
-
-def rkl1_stages(stiffness: float) -> int:
-    """RKL1 stages s over dt at ``stiffness`` = ν dt λ: the fewest (≥ 2) whose stability
-    interval, (s² + s)/2 forward-Euler limits (Meyer, Balsara & Aslam 2014, §3), covers
-    ν dt λ / 1.5 (the same 1.5/2 margin as the substeps)."""
-    return max(2, math.ceil((math.sqrt(1.0 + 8.0 * stiffness / 1.5) - 1.0) / 2.0 - 1e-12))
-
-
-def evaluations(stiffness: float, subcycle: int) -> tuple[int, bool]:
-    """(∇⁴ evaluations, RKL1?) of one ``Hyperviscosity.apply`` over dt at ``stiffness`` = ν dt
-    λ: the forward-Euler substeps, or the RKL1 stages where those are fewer and the substeps
-    are set by stability, not by ``subcycle``."""
-    n, s = forward_euler_substeps(stiffness, subcycle), rkl1_stages(stiffness)
-    return (s, True) if s < n and n > subcycle else (n, False)
 
 
 class Hyperviscosity:

@@ -24,6 +24,7 @@ from ..core.errors import ArgumentError
 from ..grid.cubed_sphere import CubedSphere
 from ..grid.topology import Topology
 from ..kernels import departure, operators, tendencies
+from .arguments import checked_terms, checked_tracers
 from .bad_nodes import BadNodes
 from .element_operators import ElementOperators
 from .filter import ElementFilter
@@ -33,36 +34,12 @@ from .helmholtz import HelmholtzOptions, HelmholtzSolver
 from .hyperviscosity import Hyperviscosity
 from .lanes import TendencyLanes
 from .launches import LaunchRecorder, check_updates
-from .limiter import LIMITERS, TracerLimiter
+from .limiter import TracerLimiter
 from .mass_fixer import MassFixer
 from .parts import ElementPart, element_runs
-from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype, tracers_refusal
-
-TERMS = (
-    "continuity",
-    "momentum_advection",
-    "coriolis",
-    "pressure_gradient",
-    "topography",
-    "hyperviscosity",
-    "forcing",
-)
+from .precision import TendencyArrays, precision_dtype, reference_depth, state_dtype
 
 f64 = wp.float64
-
-
-def _checked_terms(terms, forcing) -> tuple:
-    """``terms`` as a tuple; ValueError for an unknown term, or a forcing term without its
-    forcing or without a tendency term to add to."""
-    terms = tuple(terms)
-    for t in terms:
-        if t not in TERMS:
-            raise ValueError(f"unknown term {t!r} (known: {', '.join(TERMS)})")
-    if "forcing" in terms and forcing is None:
-        raise ValueError("the forcing term needs a forcing (kernel, params); the case supplies it")
-    if "forcing" in terms and not set(terms) & set(tendencies.TENDENCY_TERMS):
-        raise ValueError("the forcing term adds to the tendency: name at least one tendency term")
-    return terms
 
 
 class ShallowWater:
@@ -71,7 +48,7 @@ class ShallowWater:
     Parameters
     ----------
     grid : CubedSphere
-    terms : iterable of names from ``TERMS``; a term not named is neither compiled nor run.
+    terms : iterable of names from ``arguments.TERMS``; a term not named is neither compiled nor run.
     fcor, hs : (N,) Coriolis parameter (s⁻¹) and surface height (m), element-local.
     nu, nu_div, nu_s : hyperviscosity coefficients (m⁴ s⁻¹) of the rotational
         wind, the divergent wind and the free surface h + hs (HOMME's names;
@@ -216,22 +193,14 @@ class ShallowWater:
             raise ArgumentError(
                 f"device {device!r} is not its topology's ({topology.backend.device!r}): give the topology's device"
             )
-        terms = _checked_terms(terms, forcing)
-        integer_argument("tracers", tracers, low=0)
+        terms = checked_terms(terms, forcing)
         if lanes is not None:
             integer_argument("lanes", lanes, low=0)
-        if tracers and "continuity" not in terms:
-            raise ArgumentError("tracers ride the continuity: a model with tracers needs the continuity term")
+        checked_tracers(tracers, terms, limiter, precision, tracer_hyperviscosity, stage_hyperviscosity)
         self.tracers, self.rows = int(tracers), 3 + int(tracers)
         self.tracer_hyperviscosity = bool(tracer_hyperviscosity)  # the ∇⁴ on them (``hyperviscosity``)
         self.stage_hyperviscosity = bool(stage_hyperviscosity)  # ν_s ∇⁴ in the stages (``_build_tendency``)
-        if self.stage_hyperviscosity and not (tracers and "hyperviscosity" in terms and self.tracer_hyperviscosity):
-            raise ArgumentError("stage_hyperviscosity needs tracers, the hyperviscosity term and tracer_hyperviscosity")
-        if limiter not in LIMITERS:
-            raise ArgumentError(f"limiter must be one of {', '.join(LIMITERS)} (got {got(limiter)})")
         dtype = precision_dtype(precision)
-        if tracers and (why := tracers_refusal(precision)) is not None:
-            raise ArgumentError(f"tracers={tracers} with {why}")
         self.forcing = forcing if "forcing" in terms else None
         self.time = 0.0  # s, the model time of the next RHS evaluation (``set_time``)
         self._forcing_launches = []  # every recorded forcing launch, whose t set_time sets

@@ -10,7 +10,8 @@ from swe_sphere.cases.library import make_case
 from swe_sphere.core import parallel
 from swe_sphere.core.backend import Backend
 from swe_sphere.core.workers import cpus
-from swe_sphere.model.shallow_water import TERMS, ShallowWater
+from swe_sphere.model.arguments import TERMS
+from swe_sphere.model.shallow_water import ShallowWater
 from swe_sphere.steppers import STEPPERS, make_stepper
 
 import roundoff

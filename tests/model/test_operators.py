@@ -21,9 +21,10 @@ from swe_sphere.cases.library import make_case
 from swe_sphere.grid.gll import gll
 from swe_sphere.kernels import dss as dss_k
 from swe_sphere.kernels import operators
+from swe_sphere.model.arguments import TERMS
 from swe_sphere.model.diagnostics import HARMONIC_KINDS, harmonic_state, hyperviscosity_rate, ideal_hyperviscosity_rate
 from swe_sphere.model.launches import Update
-from swe_sphere.model.shallow_water import TERMS, ShallowWater
+from swe_sphere.model.shallow_water import ShallowWater
 
 import roundoff
 from helpers import cached_grid, requires_cuda

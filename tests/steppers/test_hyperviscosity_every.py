@@ -14,7 +14,7 @@ from swe_sphere.config.scene import load_scene
 from swe_sphere.config.step_rule import sparse_dt
 from swe_sphere.core.constants import DAY
 from swe_sphere.core.errors import SceneError
-from swe_sphere.model.hyperviscosity import evaluations
+from swe_sphere.model.hyperviscosity_plan import evaluations
 from swe_sphere.simulation.simulation import Simulation
 
 from helpers import cli_one_line, make_sim
